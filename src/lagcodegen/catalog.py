@@ -1,0 +1,230 @@
+"""Textbook systems, defined once and reused by examples, tests, benchmarks and generated/.
+
+Each builder returns a `Model`; ``route="energies"`` states it by T, V, Q (Lagrange II) and
+``route="bodies"`` by particles, rigid bodies and loads (d'Alembert-Lagrange) where the geometry
+is natural. Weights (P, Q) are forces, as in the problem books: masses are P/g.
+"""
+from __future__ import annotations
+
+import sympy as sp
+import sympy.physics.mechanics as me
+
+from .model import TIME, Model
+
+ROUTES = ("energies", "bodies")
+
+
+def _check_route(route: str) -> None:
+    if route not in ROUTES:
+        raise ValueError(f"route must be one of {ROUTES}, got {route!r}")
+
+
+def rolling_wheels(route: str = "energies") -> Model:
+    """Two wheels (weight P each, inertia J about the centre, radius r) joined by a translating rod
+    (weight Q), rolling without slipping down an incline beta; s is the distance travelled."""
+    _check_route(route)
+    P, Q, J, r, g, beta = sp.symbols("P Q J r g beta", positive=True)
+    s = me.dynamicsymbols("s")
+    params = (P, Q, J, r, g, beta)
+    values = {P: 20.0, Q: 10.0, J: 0.05, r: 0.3, g: 9.81, beta: 0.3}
+    if route == "energies":
+        T = (2 * P + Q) / (2 * g) * s.diff() ** 2 + J * (s.diff() / r) ** 2
+        V = -(2 * P + Q) * s * sp.sin(beta)
+        return Model("rolling_wheels", [s], params, kinetic_energy=T, potential_energy=V,
+                     parameter_values=values)
+    N = me.ReferenceFrame("N")  # x down the incline, y normal to it
+    O = me.Point("O")
+    bodies = []
+    for side in ("left", "right"):
+        frame = me.ReferenceFrame(f"W_{side}")
+        frame.orient_axis(N, N.z, -s / r)
+        centre = O.locatenew(f"C_{side}", s * N.x)
+        bodies.append(me.RigidBody(f"wheel_{side}", centre, frame, P / g, (J * me.outer(N.z, N.z), centre)))
+    bodies.append(me.Particle("rod", O.locatenew("R", s * N.x), Q / g))
+    gravity = g * (sp.sin(beta) * N.x - sp.cos(beta) * N.y)
+    return Model("rolling_wheels", [s], params, bodies=bodies, gravity=gravity, frame=N, origin=O,
+                 parameter_values=values)
+
+
+def elastic_pendulum(route: str = "energies") -> Model:
+    """A ball (mass m) on a spring (stiffness k, natural length l0) swinging in a vertical plane;
+    polar coordinates r (spring length) and phi (angle from the downward vertical)."""
+    _check_route(route)
+    m, k, l0, g = sp.symbols("m k l0 g", positive=True)
+    r, phi = me.dynamicsymbols("r phi")
+    params = (m, k, l0, g)
+    values = {m: 1.0, k: 40.0, l0: 1.0, g: 9.81}
+    spring = k * (r - l0) ** 2 / 2
+    position = (r * sp.sin(phi), -r * sp.cos(phi))
+    if route == "energies":
+        T = m * (r.diff() ** 2 + r ** 2 * phi.diff() ** 2) / 2
+        V = -m * g * r * sp.cos(phi) + spring
+        return Model("elastic_pendulum", [r, phi], params, kinetic_energy=T, potential_energy=V,
+                     points={"ball": position}, parameter_values=values)
+    N, O = me.ReferenceFrame("N"), me.Point("O")
+    ball = O.locatenew("ball", position[0] * N.x + position[1] * N.y)
+    return Model("elastic_pendulum", [r, phi], params, bodies=[me.Particle("ball", ball, m)],
+                 potential_energy=spring, gravity=-g * N.y, frame=N, origin=O,
+                 points={"ball": ball}, parameter_values=values)
+
+
+def disk_spring_rod(route: str = "energies") -> Model:
+    """A uniform disk (mass M, radius R) rolling on the floor, its centre held by a horizontal
+    spring (k), with a uniform rod (mass m, length l) hinged at the centre; x is the centre's
+    displacement from the spring's rest position, phi the rod's angle from the downward vertical."""
+    _check_route(route)
+    M, R, k, m, l, g = sp.symbols("M R k m l g", positive=True)
+    x, phi = me.dynamicsymbols("x phi")
+    params = (M, R, k, m, l, g)
+    values = {M: 2.0, R: 0.25, k: 50.0, m: 1.0, l: 1.0, g: 9.81}
+    rod_centre = (x + l / 2 * sp.sin(phi), -l / 2 * sp.cos(phi))
+    if route == "energies":
+        xd, phid = x.diff(), phi.diff()
+        T_disk = M * xd ** 2 / 2 + (M * R ** 2 / 2) * (xd / R) ** 2 / 2
+        T_rod = m * (rod_centre[0].diff(TIME) ** 2 + rod_centre[1].diff(TIME) ** 2) / 2 \
+            + (m * l ** 2 / 12) * phid ** 2 / 2
+        V = k * x ** 2 / 2 - m * g * l / 2 * sp.cos(phi)
+        return Model("disk_spring_rod", [x, phi], params, kinetic_energy=T_disk + T_rod, potential_energy=V,
+                     parameter_values=values)
+    N, O = me.ReferenceFrame("N"), me.Point("O")
+    disk_frame, rod_frame = me.ReferenceFrame("D"), me.ReferenceFrame("B")
+    disk_frame.orient_axis(N, N.z, -x / R)
+    rod_frame.orient_axis(N, N.z, phi)
+    centre = O.locatenew("C", x * N.x)
+    rod_mid = centre.locatenew("G", -l / 2 * rod_frame.y)
+    disk = me.RigidBody("disk", centre, disk_frame, M, (M * R ** 2 / 2 * me.outer(N.z, N.z), centre))
+    rod = me.RigidBody("rod", rod_mid, rod_frame, m, (m * l ** 2 / 12 * me.outer(N.z, N.z), rod_mid))
+    return Model("disk_spring_rod", [x, phi], params, bodies=[disk, rod], potential_energy=k * x ** 2 / 2,
+                 gravity=-g * N.y, frame=N, origin=O, parameter_values=values)
+
+
+def bar_on_rollers() -> Model:
+    """A bar (mass m1) on two uniform cylindrical rollers (mass m2 each, radius r) going down an
+    incline beta, rolling without slipping at all four contacts; x is the rollers' displacement
+    (the bar moves 2x). Rolling friction (coefficient delta, a length) acts at every contact with a
+    moment delta * N opposing the rolling; the normal forces are (m1/2 + m2) g cos(beta) at the
+    incline and m1/2 g cos(beta) at the bar, so its virtual work gives the generalized force
+    Q_x = -2 delta (m1 + m2) g cos(beta) sign(xd) / r."""
+    m1, m2, r, g, beta, delta = sp.symbols("m1 m2 r g beta delta", positive=True)
+    x = me.dynamicsymbols("x")
+    xd = x.diff()
+    T = m1 * (2 * xd) ** 2 / 2 + 2 * (m2 * xd ** 2 / 2 + (m2 * r ** 2 / 2) * (xd / r) ** 2 / 2)
+    V = -(m1 * 2 * x + 2 * m2 * x) * g * sp.sin(beta)
+    rolling = -2 * delta * (m1 + m2) * g * sp.cos(beta) * sp.sign(xd) / r
+    return Model("bar_on_rollers", [x], (m1, m2, r, g, beta, delta), kinetic_energy=T, potential_energy=V,
+                 generalized_forces={x: rolling},
+                 parameter_values={m1: 10.0, m2: 2.0, r: 0.1, g: 9.81, beta: 0.2, delta: 0.002})
+
+
+def centrifugal_governor(route: str = "bodies") -> Model:
+    """A centrifugal governor spun at constant omega about the vertical: two balls (weight P each)
+    on weightless rods of length l hinged on the axis, and a sleeve (weight Q) on the axis joined to
+    the balls by rods of length l; alpha is the rods' angle from the vertical. Rheonomic."""
+    _check_route(route)
+    P, Q, l, g, omega = sp.symbols("P Q l g omega", positive=True)
+    alpha = me.dynamicsymbols("alpha")
+    params = (P, Q, l, g, omega)
+    values = {P: 10.0, Q: 20.0, l: 0.5, g: 9.81, omega: 10.0}
+    if route == "energies":
+        ad = alpha.diff()
+        T = P / g * (l ** 2 * ad ** 2 + l ** 2 * sp.sin(alpha) ** 2 * omega ** 2) \
+            + Q / (2 * g) * (2 * l * sp.sin(alpha) * ad) ** 2
+        V = -2 * P * l * sp.cos(alpha) - 2 * Q * l * sp.cos(alpha)
+        return Model("centrifugal_governor", [alpha], params, kinetic_energy=T, potential_energy=V,
+                     parameter_values=values)
+    N, O = me.ReferenceFrame("N"), me.Point("O")
+    spinning = me.ReferenceFrame("S")
+    spinning.orient_axis(N, N.y, omega * TIME)
+    balls = [me.Particle(f"ball_{i}", O.locatenew(f"B{i}", sign * l * sp.sin(alpha) * spinning.x
+                                                  - l * sp.cos(alpha) * spinning.y), P / g)
+             for i, sign in ((1, 1), (2, -1))]
+    sleeve = me.Particle("sleeve", O.locatenew("S", -2 * l * sp.cos(alpha) * N.y), Q / g)
+    return Model("centrifugal_governor", [alpha], params, bodies=balls + [sleeve], gravity=-g * N.y,
+                 frame=N, origin=O, parameter_values=values)
+
+
+def gear_hoist(route: str = "energies") -> Model:
+    """A hoist: a torque M on gear 1 (weight P1, radius of gyration rho1, pitch radius r1) drives
+    gear 2 (P2, rho2, r2), on whose shaft a drum (radius r) winds a rope lifting a load (weight Q);
+    phi is gear 1's rotation, the load rises r r1/r2 phi."""
+    _check_route(route)
+    M, P1, P2, Q, rho1, rho2, r1, r2, r, g = sp.symbols("M P1 P2 Q rho1 rho2 r1 r2 r g", positive=True)
+    phi = me.dynamicsymbols("phi")
+    params = (M, P1, P2, Q, rho1, rho2, r1, r2, r, g)
+    values = {M: 60.0, P1: 100.0, P2: 300.0, Q: 500.0, rho1: 0.1, rho2: 0.25, r1: 0.1, r2: 0.3,
+              r: 0.15, g: 9.81}
+    lift = r * r1 / r2 * phi
+    if route == "energies":
+        phid = phi.diff()
+        T = (P1 / g * rho1 ** 2 * phid ** 2 + P2 / g * rho2 ** 2 * (r1 / r2 * phid) ** 2
+             + Q / g * lift.diff(TIME) ** 2) / 2
+        return Model("gear_hoist", [phi], params, kinetic_energy=T, potential_energy=Q * lift,
+                     generalized_forces={phi: M}, parameter_values=values)
+    N, O = me.ReferenceFrame("N"), me.Point("O")
+    A, B = me.ReferenceFrame("A"), me.ReferenceFrame("B")
+    A.orient_axis(N, N.z, phi)
+    B.orient_axis(N, N.z, -r1 / r2 * phi)
+    gear1 = me.RigidBody("gear1", O, A, P1 / g, (P1 / g * rho1 ** 2 * me.outer(N.z, N.z), O))
+    hub = O.locatenew("H", (r1 + r2) * N.x)
+    gear2 = me.RigidBody("gear2", hub, B, P2 / g, (P2 / g * rho2 ** 2 * me.outer(N.z, N.z), hub))
+    load = me.Particle("load", hub.locatenew("L", r * N.x + lift * N.y), Q / g)
+    return Model("gear_hoist", [phi], params, bodies=[gear1, gear2, load], loads=[(A, M * N.z)],
+                 gravity=-g * N.y, frame=N, origin=O, parameter_values=values)
+
+
+def pendulum_chain(n: int = 3, route: str = "bodies", name: str | None = None) -> Model:
+    """Planar chain of n point masses m_i on massless rods l_i; q_i is link i's absolute angle
+    from the downward vertical."""
+    _check_route(route)
+    if not isinstance(n, int) or n < 1:
+        raise ValueError(f"a pendulum chain needs n >= 1 links, got {n!r}")
+    q = me.dynamicsymbols(f"q1:{n + 1}")
+    m = sp.symbols(f"m1:{n + 1}", positive=True)
+    l = sp.symbols(f"l1:{n + 1}", positive=True)
+    g = sp.Symbol("g", positive=True)
+    params = tuple(m) + tuple(l) + (g,)
+    values = {**{mi: 1.0 for mi in m}, **{li: 1.0 for li in l}, g: 9.81}
+    name = name or f"pendulum_chain_{n}"
+    x, y, positions = sp.S.Zero, sp.S.Zero, []
+    for qi, li in zip(q, l):
+        x, y = x + li * sp.sin(qi), y - li * sp.cos(qi)
+        positions.append((x, y))
+    points = {f"bob{i + 1}": pos for i, pos in enumerate(positions)}
+    if route == "energies":
+        T = sum(mi * (px.diff(TIME) ** 2 + py.diff(TIME) ** 2) / 2 for mi, (px, py) in zip(m, positions))
+        V = sum(mi * g * py for mi, (_, py) in zip(m, positions))
+        return Model(name, q, params, kinetic_energy=T, potential_energy=V, points=points,
+                     parameter_values=values)
+    N, O = me.ReferenceFrame("N"), me.Point("O")
+    bodies, previous = [], O
+    for i, (qi, li, mi) in enumerate(zip(q, l, m)):
+        bob = previous.locatenew(f"P{i + 1}", li * (sp.sin(qi) * N.x - sp.cos(qi) * N.y))
+        bodies.append(me.Particle(f"bob{i + 1}", bob, mi))
+        previous = bob
+    return Model(name, q, params, bodies=bodies, gravity=-g * N.y, frame=N, origin=O, points=points,
+                 parameter_values=values)
+
+
+def double_pendulum(route: str = "bodies") -> Model:
+    """The planar double pendulum: `pendulum_chain` with n = 2."""
+    return pendulum_chain(2, route=route, name="double_pendulum")
+
+
+EXAMPLES = {
+    "rolling_wheels": rolling_wheels,
+    "elastic_pendulum": elastic_pendulum,
+    "disk_spring_rod": disk_spring_rod,
+    "bar_on_rollers": bar_on_rollers,
+    "centrifugal_governor": centrifugal_governor,
+    "gear_hoist": gear_hoist,
+    "double_pendulum": double_pendulum,
+    "pendulum_chain_5": lambda: pendulum_chain(5),
+}
+
+
+def example(name: str) -> Model:
+    """The catalog model called ``name`` (see `EXAMPLES`)."""
+    try:
+        return EXAMPLES[name]()
+    except KeyError:
+        raise KeyError(f"no example called {name!r}; examples: {', '.join(EXAMPLES)}") from None

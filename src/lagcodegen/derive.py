@@ -1,0 +1,393 @@
+"""Stage: Model -> EquationsOfMotion.
+
+Every derivation route returns the same target form, in generalized coordinates q (n) and
+generalized speeds u (n)::
+
+    qd = K(q, u, t)               kinematic equations (K = u for the Lagrange routes)
+    M(q, t) ud = F(q, u, t)       dynamic equations; M symmetric positive definite
+
+Lagrange II (energies route), with p = dT/du, never forming d/dt(dT/dqd) symbolically::
+
+    M = d2T/du2 (the Hessian of T in the speeds)
+    F = dT/dq - (dp/dq) u - dp/dt - dV/dq - dR/du + Q
+
+d'Alembert-Lagrange (bodies route): with r(q, t) a mass centre, J = dr/dq its partial
+velocities, a0 = (dv/dq) u + dv/dt the speed-dependent acceleration, and for a rigid body the
+body-frame angular velocity w = Jw u + w_t, alpha0 = (dw/dq) u + dw/dt, inertia I::
+
+    M = sum m J^T J + Jw^T I Jw
+    F = sum J^T (f - m a0) + Jw^T (tau - I alpha0 - w x I w)
+
+(Lurie, Analytical Mechanics, ch. 3; Kane & Levinson, Dynamics: Theory and Applications, ch. 4).
+Terms shared by many bodies are grouped, so M_jk of a chain comes out as
+(m_k + ... + m_n) * (...) rather than n separate products.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Callable
+
+import sympy as sp
+import sympy.physics.mechanics as me
+from sympy.core.function import AppliedUndef
+
+from .model import TIME, Model, ModelError, ROUTE_BODIES, ROUTE_ENERGIES, check_declared
+
+ROUTE_TITLES = {
+    ROUTE_ENERGIES: "Lagrange II (energies)",
+    ROUTE_BODIES: "d'Alembert-Lagrange (points and bodies)",
+}
+
+
+@dataclass(frozen=True)
+class EquationsOfMotion:
+    """``qd = K(q, u, t)``, ``M(q, t) ud = F(q, u, t)``, in plain symbols.
+
+    Attributes
+    ----------
+    name, route : str
+    t : Symbol
+    coordinates, speeds : tuple
+        The dynamicsymbols q_i(t) and generalized speeds (qd_i(t), or Kane's u_i(t)).
+    q, u : tuple of Symbol, (n,)
+        Plain symbols standing for ``coordinates`` and ``speeds`` in every expression below.
+    parameters : tuple of Symbol
+    parameter_values : dict Symbol -> float (defaults; may be partial)
+    mass_matrix : ImmutableMatrix, (n, n), symmetric
+    forcing : ImmutableMatrix, (n, 1)
+    kinematics : ImmutableMatrix, (n, 1); qd = kinematics
+    kinetic_energy, potential_energy : Expr or None
+    points : tuple of (name, ImmutableMatrix (d, 1))
+    """
+
+    name: str
+    route: str
+    t: sp.Symbol
+    coordinates: tuple
+    speeds: tuple
+    q: tuple
+    u: tuple
+    parameters: tuple
+    parameter_values: dict
+    mass_matrix: sp.ImmutableMatrix
+    forcing: sp.ImmutableMatrix
+    kinematics: sp.ImmutableMatrix
+    kinetic_energy: Any
+    potential_energy: Any
+    points: tuple
+
+    @property
+    def n(self) -> int:
+        return len(self.q)
+
+    @property
+    def mass_matrix_full(self) -> sp.ImmutableMatrix:
+        """(2n, 2n) block diag(I, M) of the first-order form in x = (q, u)."""
+        n = self.n
+        full = sp.zeros(2 * n, 2 * n)
+        full[:n, :n] = sp.eye(n)
+        full[n:, n:] = self.mass_matrix
+        return sp.ImmutableMatrix(full)
+
+    @property
+    def forcing_full(self) -> sp.ImmutableMatrix:
+        """(2n, 1) right-hand side (K; F) of the first-order form."""
+        return sp.ImmutableMatrix.vstack(self.kinematics, self.forcing)
+
+    @property
+    def energy(self):
+        """Total mechanical energy T + V, or None when the route gives no energies."""
+        if self.kinetic_energy is None or self.potential_energy is None:
+            return None
+        return self.kinetic_energy + self.potential_energy
+
+    def to_dynamic(self, expr):
+        """Rewrite ``expr`` from plain symbols to dynamicsymbols (for display)."""
+        back = dict(zip(self.q, self.coordinates))
+        back.update(zip(self.u, self.speeds))
+        return sp.sympify(expr).xreplace(back)
+
+
+def derive_equations(model: Model) -> EquationsOfMotion:
+    """Derive `EquationsOfMotion` from a validated `Model`, by its route."""
+    from . import importers  # sympy-model route lives beside, not inside, the core routes
+
+    if model.route == ROUTE_ENERGIES:
+        return _derive_from_energies(model)
+    if model.route == ROUTE_BODIES:
+        return _derive_from_bodies(model)
+    return importers.derive_from_sympy(model)
+
+
+# -- symbols ----------------------------------------------------------------------------------
+def plain_symbols(coordinates, speeds, parameters) -> tuple[tuple, tuple]:
+    """Plain Symbols for q_i(t) (same name) and their speeds (name + '_d', or Kane's u name)."""
+    q = tuple(sp.Symbol(c.func.__name__) for c in coordinates)
+    u = tuple(sp.Symbol(s.func.__name__ if isinstance(s, AppliedUndef) else s.expr.func.__name__ + "_d")
+              for s in speeds)
+    taken = {p.name: "parameter" for p in parameters}
+    for sym in q + u:
+        if sym.name in taken:
+            raise ModelError(f"name {sym.name!r} is used by a {taken[sym.name]} and by a coordinate or speed")
+        taken[sym.name] = "coordinate or speed"
+    return q, u
+
+
+def make_substitution(coordinates, speeds, q, u, what: str) -> Callable:
+    """Return ``to_plain(expr)``: dynamicsymbols -> plain symbols, raising on leftovers."""
+    table = dict(zip(speeds, u))  # Derivative(q(t), t) for the Lagrange routes, u(t) for Kane's
+    table.update(zip(coordinates, q))
+
+    def to_plain(expr, where: str = what):
+        expr = sp.sympify(expr)
+        out = expr.xreplace(table)
+        left = [a for a in out.atoms(sp.Derivative, AppliedUndef)]
+        if left:
+            raise ModelError(f"{where} contains {', '.join(sorted(map(str, left)))}, which is not a "
+                             f"coordinate or a speed of this model")
+        return out
+    return to_plain
+
+
+# -- Lagrange II ------------------------------------------------------------------------------
+def _derive_from_energies(model: Model) -> EquationsOfMotion:
+    coords = model.coordinates
+    speeds = tuple(c.diff(TIME) for c in coords)
+    q, u = plain_symbols(coords, speeds, model.parameters)
+    to_plain = make_substitution(coords, speeds, q, u, "model")
+    T = to_plain(model.kinetic_energy, "kinetic energy")
+    V = to_plain(model.potential_energy, "potential energy")
+    R = to_plain(model.dissipation, "dissipation function")
+    t, n = TIME, len(q)
+
+    p = [T.diff(uj) for uj in u]
+    M = sp.zeros(n, n)
+    for j in range(n):
+        for k in range(j + 1):
+            M[j, k] = M[k, j] = p[j].diff(u[k])
+    _check_mass_matrix(M, coords, u)
+
+    forces = [to_plain(model.generalized_forces.get(c, 0), f"generalized force on {c}") for c in coords]
+    F = sp.zeros(n, 1)
+    for j in range(n):
+        transport = sp.Add(*[p[j].diff(qk) * uk for qk, uk in zip(q, u)])
+        F[j] = T.diff(q[j]) - transport - p[j].diff(t) - V.diff(q[j]) - R.diff(u[j]) + forces[j]
+    return _assemble(model, coords, speeds, q, u, M, F, sp.Matrix(u), T, V, to_plain)
+
+
+def _check_mass_matrix(M: sp.Matrix, coords, u) -> None:
+    for j, c in enumerate(coords):
+        if M[j, j] == 0:
+            raise ModelError(
+                f"coordinate {c.func.__name__!r} has no inertia: its speed does not appear in the kinetic "
+                f"energy, so the mass matrix is singular (row {j})")
+    speeds = set(u)
+    for (j, k), entry in M.todok().items():
+        if entry.free_symbols & speeds:
+            raise ModelError(
+                f"the kinetic energy is not quadratic in the speeds: M[{j},{k}] depends on "
+                f"{', '.join(sorted(map(str, entry.free_symbols & speeds)))}")
+
+
+# -- d'Alembert-Lagrange ----------------------------------------------------------------------
+class _GroupedSum:
+    """Per-entry sums of ``coefficient * term``, grouping equal terms and equal coefficients.
+
+    Summing m_i * X over bodies i that share the product X yields (m_a + m_b + ...) * X:
+    one product instead of one per body, before any CSE.
+    """
+
+    def __init__(self):
+        self.entries: dict = {}
+
+    def add(self, index, coefficient, expr) -> None:
+        terms = self.entries.setdefault(index, {})
+        for term in sp.Add.make_args(sp.expand_mul(expr)):
+            coeff, rest = term.as_coeff_Mul()
+            terms.setdefault(rest, []).append(coeff * coefficient)
+
+    def add_dot(self, index, coefficient, a, b) -> None:
+        """Add coefficient * a.b for column vectors a, b."""
+        for ai, bi in zip(a, b):
+            if ai != 0 and bi != 0:
+                self.add(index, coefficient, ai * bi)
+
+    def value(self, index):
+        terms = self.entries.get(index, {})
+        for _ in range(2):  # a Pythagorean merge can produce a term that already exists
+            regrouped: dict = {}
+            for coefficient, group in _by_coefficient(terms).items():
+                for term in merge_pythagorean(group):
+                    coeff, rest = term.as_coeff_Mul()
+                    regrouped.setdefault(rest, []).append(coeff * coefficient)
+            terms = regrouped
+        return sp.Add(*[c * sp.Add(*group) for c, group in _by_coefficient(terms).items()])
+
+
+def _by_coefficient(terms: dict) -> dict:
+    grouped: dict = {}
+    for term, coefficients in terms.items():
+        coefficient = sp.Add(*coefficients)
+        if coefficient.could_extract_minus_sign():  # -m * X and m * Y share the group m * (Y - X)
+            coefficient, term = -coefficient, -term
+        if coefficient != 0:
+            grouped.setdefault(coefficient, []).append(term)
+    return grouped
+
+
+def merge_pythagorean(terms: list) -> list:
+    """Replace each pair c*sin(x)**2, c*cos(x)**2 in ``terms`` by c (exact, cheap, no trigsimp)."""
+    terms = list(terms)
+    changed = True
+    while changed:
+        changed = False
+        seen: dict = {}
+        for i, term in enumerate(terms):
+            for factor in sp.Mul.make_args(term):
+                if factor.is_Pow and factor.exp == 2 and isinstance(factor.base, (sp.sin, sp.cos)):
+                    rest = term / factor
+                    key = (rest, factor.base.args[0])
+                    partner = seen.get((key, sp.cos if isinstance(factor.base, sp.sin) else sp.sin))
+                    if partner is not None:
+                        terms[partner], terms[i] = rest, sp.S.Zero
+                        changed = True
+                        break
+                    seen[(key, type(factor.base))] = i
+            if changed:
+                break
+        terms = [t for t in terms if t != 0]
+    return terms
+
+
+@dataclass(frozen=True)
+class _TermMotion:
+    """Kinematics of one additive term s(q, t) of a position component."""
+
+    partials: dict   # k -> ds/dq_k (nonzero only)
+    velocity: Any    # sum_k ds/dq_k u_k + ds/dt
+    acceleration: Any  # speed-dependent part: sum_k dv/dq_k u_k + dv/dt
+
+
+def _term_motion(term, q, u, t, cache: dict) -> _TermMotion:
+    if term in cache:
+        return cache[term]
+    symbols = term.free_symbols
+    partials = {k: term.diff(qk) for k, qk in enumerate(q) if qk in symbols}
+    partials = {k: d for k, d in partials.items() if d != 0}
+    v = sp.Add(*[d * u[k] for k, d in partials.items()], term.diff(t) if t in symbols else 0)
+    v_symbols = v.free_symbols
+    a0 = sp.Add(*[v.diff(qk) * u[k] for k, qk in enumerate(q) if qk in v_symbols],
+                v.diff(t) if t in v_symbols else 0)
+    cache[term] = motion = _TermMotion(partials, v, a0)
+    return motion
+
+
+def _derive_from_bodies(model: Model) -> EquationsOfMotion:
+    """Translation by pairs of position terms shared between bodies; rotation body by body."""
+    coords = model.coordinates
+    speeds = tuple(c.diff(TIME) for c in coords)
+    q, u = plain_symbols(coords, speeds, model.parameters)
+    to_plain = make_substitution(coords, speeds, q, u, "model")
+    N, O, t, n = model.frame, model.origin, TIME, len(q)
+    gravity = to_plain(model.gravity.to_matrix(N), "gravity") if model.gravity is not None else sp.zeros(3, 1)
+
+    pair_mass: dict = {}   # ((component, s), (component, s')) -> masses of bodies holding both terms
+    term_mass: dict = {}   # (component, s) -> masses of bodies holding s
+    M_sum, F_sum = _GroupedSum(), _GroupedSum()
+    T = []
+    for body in model.bodies:
+        m = to_plain(body.mass, f"mass of {body.name}")
+        r = to_plain(body.masscenter.pos_from(O).to_matrix(N), f"position of {body.name}")
+        terms = [(c, s) for c in range(3) for s in sp.Add.make_args(r[c]) if s != 0]
+        for a in terms:
+            term_mass.setdefault(a, []).append(m)
+            for b in terms:
+                if a[0] == b[0]:
+                    pair_mass.setdefault((a, b), []).append(m)
+        if isinstance(body, me.RigidBody):
+            _add_rotation(body, M_sum, F_sum, T, to_plain, N, q, u, t)
+
+    motion: dict = {}
+    V = []
+    for (c, s), masses in term_mass.items():
+        mass = sp.Add(*masses)
+        if gravity[c] != 0:
+            V.append(-mass * gravity[c] * s)
+            for j, d in _term_motion(s, q, u, t, motion).partials.items():
+                F_sum.add(j, mass, d * gravity[c])
+    for ((_, s), (_, s2)), masses in pair_mass.items():
+        mass = sp.Add(*masses)
+        a, b = _term_motion(s, q, u, t, motion), _term_motion(s2, q, u, t, motion)
+        T.append(mass * a.velocity * b.velocity / 2)
+        for j, dj in a.partials.items():
+            if b.acceleration != 0:
+                F_sum.add(j, -mass, dj * b.acceleration)
+            for k, dk in b.partials.items():
+                if k <= j:
+                    M_sum.add((j, k), mass, dj * dk)
+
+    for load in model.loads:
+        _add_load(load, F_sum, to_plain, N, O, q, u)
+
+    M = sp.zeros(n, n)
+    for j in range(n):
+        for k in range(j + 1):
+            M[j, k] = M[k, j] = M_sum.value((j, k))
+    _check_mass_matrix(M, coords, u)
+    Vx = to_plain(model.potential_energy, "potential energy")
+    R = to_plain(model.dissipation, "dissipation function")
+    F = sp.zeros(n, 1)
+    for j, c in enumerate(coords):
+        Q = to_plain(model.generalized_forces.get(c, 0), f"generalized force on {c}")
+        F[j] = F_sum.value(j) - Vx.diff(q[j]) - R.diff(u[j]) + Q
+    return _assemble(model, coords, speeds, q, u, M, F, sp.Matrix(u), sp.Add(*T), sp.Add(Vx, *V), to_plain)
+
+
+def _add_rotation(body, M_sum, F_sum, T, to_plain, N, q, u, t) -> None:
+    B = body.frame
+    w = to_plain(B.ang_vel_in(N).to_matrix(B), f"angular velocity of {body.name}")
+    I = to_plain(body.central_inertia.to_matrix(B), f"inertia of {body.name}")
+    Jw = w.jacobian(u)
+    alpha0 = w.jacobian(q) * sp.Matrix(u) + w.diff(t)
+    Iw = I * w
+    torque = -(I * alpha0 + w.cross(Iw))
+    n = len(q)
+    for j in range(n):
+        IJ = I * Jw[:, j]
+        for k in range(j + 1):
+            M_sum.add_dot((j, k), 1, IJ, Jw[:, k])
+        F_sum.add_dot(j, 1, Jw[:, j], torque)
+    T.append((w.T * Iw)[0] / 2)
+
+
+def _add_load(load, F_sum, to_plain, N, O, q, u) -> None:
+    if load.is_torque:
+        B = load.where
+        w = to_plain(B.ang_vel_in(N).to_matrix(B), f"angular velocity of frame {B}")
+        J = w.jacobian(u)
+        f = to_plain(load.vector.to_matrix(B), f"torque on {B}")
+    else:
+        r = to_plain(load.where.pos_from(O).to_matrix(N), f"position of point {load.where}")
+        J = r.jacobian(q)
+        f = to_plain(load.vector.to_matrix(N), f"force on {load.where}")
+    for j in range(len(q)):
+        F_sum.add_dot(j, 1, J[:, j], f)
+
+
+# -- shared tail ------------------------------------------------------------------------------
+def _assemble(model, coords, speeds, q, u, M, F, K, T, V, to_plain) -> EquationsOfMotion:
+    check_declared([("mass matrix", M), ("forcing", F)], model.parameters, (), extra=q + u)
+    points = []
+    for name, where in model.points.items():
+        if isinstance(where, me.Point):
+            pos = where.pos_from(model.origin).to_matrix(model.frame)
+        else:
+            pos = sp.Matrix(list(where))
+        points.append((name, sp.ImmutableMatrix(to_plain(pos, f"point {name!r}"))))
+    route = ROUTE_TITLES.get(model.route, model.route)
+    return EquationsOfMotion(
+        name=model.name, route=route, t=TIME, coordinates=tuple(coords), speeds=tuple(speeds),
+        q=tuple(q), u=tuple(u), parameters=tuple(model.parameters),
+        parameter_values=dict(model.parameter_values),
+        mass_matrix=sp.ImmutableMatrix(M), forcing=sp.ImmutableMatrix(F), kinematics=sp.ImmutableMatrix(K),
+        kinetic_energy=T, potential_energy=V, points=tuple(points))

@@ -1,0 +1,84 @@
+"""Stage: sympy LagrangesMethod / KanesMethod / System model -> EquationsOfMotion.
+
+sympy has already derived ``M ud = F`` for these objects; this route renames their
+dynamicsymbols to plain symbols and takes the kinematic equations from Kane's
+``kindiffdict`` (qd = K(q, u, t)), so Kane's generalized speeds pass through unchanged.
+"""
+from __future__ import annotations
+
+import sympy as sp
+import sympy.physics.mechanics as me
+
+from .model import TIME, Model, ModelError
+
+
+def derive_from_sympy(model: Model):
+    from .derive import _assemble, make_substitution, plain_symbols
+
+    method = _formed_method(model.sympy_model)
+    coords = tuple(method.q)
+    if isinstance(method, me.LagrangesMethod):
+        if len(method.lam_vec) > 0:
+            raise ModelError("LagrangesMethod with constraint multipliers is not supported yet: "
+                             "give the model in independent coordinates")
+        speeds = tuple(c.diff(TIME) for c in coords)
+        kin_dynamic = sp.Matrix(speeds)
+        route = "sympy LagrangesMethod (Lagrange II)"
+    else:
+        if len(method._udep) or len(method._uaux):
+            raise ModelError("KanesMethod with dependent or auxiliary speeds is not supported yet")
+        speeds = tuple(method.u)
+        kindiff = method.kindiffdict()
+        kin_dynamic = sp.Matrix([kindiff[c.diff(TIME)] for c in coords])
+        route = "sympy KanesMethod (Kane)"
+    q, u = plain_symbols(coords, speeds, model.parameters)
+    to_plain = make_substitution(coords, speeds, q, u, "sympy model")
+    qdot_table = {} if isinstance(method, me.LagrangesMethod) else {
+        c.diff(TIME): k for c, k in zip(coords, kin_dynamic)}
+    M = to_plain(method.mass_matrix.xreplace(qdot_table), "mass matrix")
+    F = to_plain(method.forcing.xreplace(qdot_table), "forcing")
+    K = to_plain(kin_dynamic, "kinematic equations")
+    T, V = _energies(method, model, to_plain)
+    eom = _assemble(model, coords, speeds, q, u, M, F, K, T, V, to_plain)
+    return _with_route(eom, route)
+
+
+def _formed_method(obj):
+    """The LagrangesMethod or KanesMethod behind ``obj``, with its equations formed."""
+    if isinstance(obj, me.System):
+        if obj.eom_method is None:
+            obj.form_eoms()
+        obj = obj.eom_method
+    if isinstance(obj, me.LagrangesMethod):
+        if obj.eom is None:
+            obj.form_lagranges_equations()
+        return obj
+    if isinstance(obj, me.KanesMethod):
+        if obj._fr is None:
+            if not obj.bodies:
+                raise ModelError("KanesMethod has no bodies: call kanes_equations(bodies, loads) "
+                                 "or pass bodies= to KanesMethod")
+            obj.kanes_equations(obj.bodies, obj.loads)
+        return obj
+    raise ModelError(f"sympy_model must be a LagrangesMethod, KanesMethod or System, got {type(obj).__name__}")
+
+
+def _energies(method, model: Model, to_plain):
+    """(T, V): from the Lagrangian L = T - V split at u = 0, or from Kane's bodies."""
+    if isinstance(method, me.LagrangesMethod):
+        L = to_plain(method._L, "Lagrangian")
+        rest = to_plain(sp.Matrix([c.diff(TIME) for c in method.q]), "speeds")
+        at_rest = L.xreplace({s: 0 for s in rest})
+        return L - at_rest, -at_rest + to_plain(model.potential_energy, "potential energy")
+    bodies = method.bodies or ()
+    if not bodies or model.frame is None:
+        return None, None
+    T = to_plain(me.kinetic_energy(model.frame, *bodies), "kinetic energy")
+    V = to_plain(sum((b.potential_energy for b in bodies), sp.S.Zero) + model.potential_energy,
+                 "potential energy")
+    return T, V
+
+
+def _with_route(eom, route: str):
+    from dataclasses import replace
+    return replace(eom, route=route)
