@@ -382,7 +382,7 @@ def _assemble(model, coords, speeds, q, u, M, F, K, T, V, to_plain) -> Equations
         if isinstance(where, me.Point):
             pos = where.pos_from(model.origin).to_matrix(model.frame)
         else:
-            pos = sp.Matrix(list(where))
+            pos = sp.Matrix(list(where) + [0] * (3 - len(where)))  # planar points get z = 0
         points.append((name, sp.ImmutableMatrix(to_plain(pos, f"point {name!r}"))))
     route = ROUTE_TITLES.get(model.route, model.route)
     return EquationsOfMotion(

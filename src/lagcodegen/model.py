@@ -148,6 +148,8 @@ class Model:
         for p in self.parameters:
             if not isinstance(p, sp.Symbol):
                 raise ModelError(f"parameter {p!r} must be a sympy Symbol, got {type(p).__name__}")
+            if p == TIME:
+                raise ModelError(f"parameter {p.name!r} is the time symbol; give the parameter another name")
             if p.name in seen:
                 raise ModelError(f"parameter {p.name!r} is declared twice")
             seen.add(p.name)
@@ -211,6 +213,8 @@ class Model:
             exprs.append((f"mass of {body.name}", _as_expr(body.mass, f"mass of {body.name}")))
         for name, pos in self.points.items():
             if not isinstance(pos, me.Point):
+                if not isinstance(pos, (tuple, list)) or len(pos) not in (2, 3):
+                    raise ModelError(f"point {name!r} must be a Point or 2 or 3 expressions, got {pos!r}")
                 for i, c in enumerate(pos):
                     exprs.append((f"point {name!r} component {i}", _as_expr(c, f"point {name!r}")))
         if self.gravity is not None:

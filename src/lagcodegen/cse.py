@@ -1,0 +1,190 @@
+"""Stage: EquationsOfMotion -> ReducedSystem (one ReducedKernel per C output function).
+
+Fixed parameters are substituted first (so they fold), then common subexpressions are
+eliminated jointly over everything one kernel outputs: the ``dynamics`` kernel, behind the C
+``accel`` and ``rhs`` functions, shares temporaries between K, M and F.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Mapping
+
+import sympy as sp
+
+from .derive import EquationsOfMotion
+
+#: output name -> the kernel that computes it
+OUTPUT_KERNELS = {
+    "mass_matrix": "mass_matrix",
+    "forcing": "forcing",
+    "accel": "dynamics",
+    "rhs": "dynamics",
+    "energy": "energy",
+    "points": "points",
+}
+DEFAULT_OUTPUTS = ("mass_matrix", "forcing", "accel", "rhs", "energy", "points")
+
+
+class KernelError(ValueError):
+    """Kernel request inconsistent with the equations; the message names the culprit."""
+
+
+@dataclass(frozen=True)
+class ReducedKernel:
+    """Straight-line code for one output function.
+
+    Attributes
+    ----------
+    name : str
+        ``mass_matrix``, ``forcing``, ``dynamics``, ``energy`` or ``points``.
+    temporaries : tuple of (Symbol, Expr)
+        In evaluation order; each may use inputs and earlier temporaries.
+    results : tuple of (label, Expr)
+        ``label`` is (block, i, j): ("M", j, k) lower triangle, ("F", j, 0), ("K", j, 0),
+        ("E", 0, 0), ("P", point, component).
+    ops_before, ops_after : int
+        ``sympy.count_ops`` of the results before CSE, and of temporaries plus results after.
+    """
+
+    name: str
+    temporaries: tuple
+    results: tuple
+    ops_before: int
+    ops_after: int
+
+    @property
+    def symbols(self) -> frozenset:
+        """Free symbols the kernel reads (inputs only, temporaries excluded)."""
+        found = set()
+        for _, expr in self.temporaries + self.results:
+            found |= expr.free_symbols
+        return frozenset(found - {s for s, _ in self.temporaries})
+
+
+@dataclass(frozen=True)
+class ReducedSystem:
+    """Everything emission needs: symbol order, parameter split and the kernels.
+
+    ``kinematics_identity`` is True when qd = u (every Lagrange route), so the C copies u.
+    ``ops_saved_by_fixing`` counts operations removed, before CSE, by folding fixed parameters.
+    """
+
+    name: str
+    route: str
+    t: sp.Symbol
+    q: tuple
+    u: tuple
+    free_parameters: tuple
+    fixed_parameters: tuple
+    point_names: tuple
+    outputs: tuple
+    kernels: tuple
+    kinematics_identity: bool
+    ops_saved_by_fixing: int
+
+    def kernel(self, name: str) -> ReducedKernel:
+        for k in self.kernels:
+            if k.name == name:
+                return k
+        raise KeyError(f"kernel {name!r} was not requested (outputs: {', '.join(self.outputs)})")
+
+
+def reduce_expressions(eom: EquationsOfMotion, outputs=DEFAULT_OUTPUTS,
+                       fixed: Mapping | None = None) -> ReducedSystem:
+    """Fold ``fixed`` parameters and CSE each requested output's kernel.
+
+    Parameters
+    ----------
+    eom : EquationsOfMotion
+    outputs : sequence of str
+        Any of ``DEFAULT_OUTPUTS``; only these are generated.
+    fixed : mapping parameter (Symbol or name) -> float, optional
+        Parameters folded into the code; every other parameter stays a runtime input ``p[i]``.
+    """
+    outputs = _checked_outputs(eom, outputs)
+    fixed_values = _checked_fixed(eom, fixed or {})
+    folding = {p: sp.Float(v, 17) for p, v in fixed_values}
+    blocks = _output_blocks(eom, outputs)
+    saved = 0
+    kernels = []
+    for name, labelled in blocks.items():
+        raw = [expr for _, expr in labelled]
+        folded = [expr.xreplace(folding) if folding else expr for expr in raw]
+        if folding:
+            saved += sp.count_ops(raw) - sp.count_ops(folded)
+        kernels.append(_reduce(name, [label for label, _ in labelled], folded))
+    kinematics_identity = list(eom.kinematics) == list(eom.u)
+    fixed_symbols = {p for p, _ in fixed_values}
+    return ReducedSystem(
+        name=eom.name, route=eom.route, t=eom.t, q=eom.q, u=eom.u,
+        free_parameters=tuple(p for p in eom.parameters if p not in fixed_symbols),
+        fixed_parameters=fixed_values, point_names=tuple(name for name, _ in eom.points),
+        outputs=tuple(outputs), kernels=tuple(kernels), kinematics_identity=kinematics_identity,
+        ops_saved_by_fixing=int(saved))
+
+
+def _checked_outputs(eom: EquationsOfMotion, outputs) -> list:
+    chosen = []
+    for out in outputs:
+        if out not in OUTPUT_KERNELS:
+            raise KernelError(f"unknown output {out!r}; choose from {', '.join(DEFAULT_OUTPUTS)}")
+        if out == "energy" and eom.energy is None:
+            raise KernelError(f"model {eom.name!r} has no energies (route {eom.route}); drop 'energy'")
+        if out == "points" and not eom.points:
+            continue  # nothing to output: the scene names no points
+        if out not in chosen:
+            chosen.append(out)
+    if not chosen:
+        raise KernelError("no outputs requested")
+    return chosen
+
+
+def _checked_fixed(eom: EquationsOfMotion, fixed: Mapping) -> tuple:
+    by_name = {p.name: p for p in eom.parameters}
+    values = []
+    for key, value in fixed.items():
+        name = key.name if isinstance(key, sp.Symbol) else str(key)
+        if name not in by_name:
+            raise KernelError(f"cannot fix {name!r}: not a parameter of {eom.name!r} "
+                              f"(parameters: {', '.join(by_name)})")
+        value = float(value)
+        if value != value or value in (float("inf"), float("-inf")):
+            raise KernelError(f"fixed parameter {name!r} has a non-finite value {value}")
+        values.append((by_name[name], value))
+    order = {p: i for i, p in enumerate(eom.parameters)}
+    return tuple(sorted(values, key=lambda pv: order[pv[0]]))
+
+
+def _output_blocks(eom: EquationsOfMotion, outputs) -> dict:
+    """kernel name -> [(label, expr)], in a fixed order."""
+    n = eom.n
+    M = eom.mass_matrix
+    lower = [(("M", j, k), M[j, k]) for j in range(n) for k in range(j + 1)]
+    forcing = [(("F", j, 0), eom.forcing[j]) for j in range(n)]
+    blocks: dict = {}
+    for out in outputs:
+        kernel = OUTPUT_KERNELS[out]
+        if kernel in blocks:
+            continue
+        if kernel == "mass_matrix":
+            blocks[kernel] = lower
+        elif kernel == "forcing":
+            blocks[kernel] = forcing
+        elif kernel == "dynamics":
+            kin = [] if list(eom.kinematics) == list(eom.u) else \
+                [(("K", j, 0), eom.kinematics[j]) for j in range(n)]
+            blocks[kernel] = kin + lower + forcing
+        elif kernel == "energy":
+            blocks[kernel] = [(("E", 0, 0), eom.energy)]
+        elif kernel == "points":
+            blocks[kernel] = [(("P", i, c), pos[c]) for i, (_, pos) in enumerate(eom.points)
+                              for c in range(len(pos))]
+    return blocks
+
+
+def _reduce(name: str, labels: list, exprs: list) -> ReducedKernel:
+    before = int(sp.count_ops(exprs))
+    replacements, reduced = sp.cse(exprs, symbols=sp.numbered_symbols("tmp"), order="canonical")
+    after = int(sum(sp.count_ops(v) for _, v in replacements) + sp.count_ops(reduced))
+    return ReducedKernel(name=name, temporaries=tuple(replacements),
+                         results=tuple(zip(labels, reduced)), ops_before=before, ops_after=after)

@@ -1,0 +1,102 @@
+"""Helper: write the C of every catalog example into ``generated/`` (and check it is fresh).
+
+For each example: ``lcg_<name>.{h,c}`` in double, ``lcg_<name>_f32.{h,c}`` in float and a C test
+``test_lcg_<name>.c`` (and ``_f32``) whose expected values come from sympy evaluation at 30
+digits, an independent route from CSE, printing and compilation. Files are rewritten only
+when their content changes.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import sympy as sp
+
+from .catalog import EXAMPLES
+from .cse import reduce_expressions
+from .derive import EquationsOfMotion, derive_equations
+from .emit import _environment, render_sources
+
+#: time of the C tests' sample state (rheonomic models depend on it)
+SAMPLE_TIME = 0.25
+TOLERANCE = {"double": "1e-12", "float": "2e-4"}
+EXAMPLE_OUTPUTS = ("mass_matrix", "forcing", "accel", "rhs", "energy", "points")
+
+
+@dataclass(frozen=True)
+class SampleState:
+    """A deterministic state, parameter values and sympy's 30-digit M, F and ud there."""
+
+    x: tuple
+    p: tuple
+    M: tuple  # row-major n*n
+    F: tuple
+    ud: tuple
+
+
+def sample_state(eom: EquationsOfMotion) -> SampleState:
+    """Evaluate M, F and ud = M^-1 F with 30 significant digits at a fixed sample state."""
+    n = eom.n
+    q = [sp.Float(0.4 + 0.17 * i, 30) for i in range(n)]
+    u = [sp.Float(0.3 - 0.11 * i, 30) for i in range(n)]
+    p = [sp.Float(eom.parameter_values[s], 30) for s in eom.parameters]
+    values = dict(zip(eom.q, q)) | dict(zip(eom.u, u)) | dict(zip(eom.parameters, p))
+    values[eom.t] = sp.Float(SAMPLE_TIME, 30)
+    M = eom.mass_matrix.xreplace(values).evalf(30)
+    F = eom.forcing.xreplace(values).evalf(30)
+    ud = M.LUsolve(F).evalf(30)
+    return SampleState(x=tuple(q + u), p=tuple(p), M=tuple(M), F=tuple(F), ud=tuple(ud))
+
+
+def example_files(name: str) -> dict:
+    """File name -> text for one catalog example (double and float kernels and their C tests)."""
+    eom = derive_equations(EXAMPLES[name]())
+    system = reduce_expressions(eom, EXAMPLE_OUTPUTS)
+    sample = sample_state(eom)
+    files = {}
+    for precision, suffix in (("double", ""), ("float", "_f32")):
+        sources = render_sources(system, precision, model_name=name + suffix)
+        files[sources.header_name] = sources.header
+        files[sources.source_name] = sources.source
+        files[f"test_{sources.layout.prefix}.c"] = _c_test(sources, sample, precision)
+    return files
+
+
+def _numbers(values) -> str:
+    return ", ".join(f"{float(v)!r}" for v in values) or "0.0"
+
+
+def _c_test(sources, sample: SampleState, precision: str) -> str:
+    layout = sources.layout
+    literal = (lambda v: f"{float(v)!r}F") if precision == "float" else (lambda v: f"{float(v)!r}")
+    context = {
+        "version": _version(), "sympy_version": sp.__version__, "model": layout.model,
+        "key": sources.source.split("source key: ")[1].split(".")[0], "prefix": layout.prefix,
+        "header_name": sources.header_name, "real": precision, "n": layout.n,
+        "n_state": 2 * layout.n, "n_matrix": layout.n * layout.n, "p_size": max(1, len(sample.p)),
+        "state_values": ", ".join(map(literal, sample.x)),
+        "param_values": ", ".join(map(literal, sample.p)) or literal(0),
+        "mass_values": _numbers(sample.M), "forcing_values": _numbers(sample.F),
+        "accel_values": _numbers(sample.ud), "time": literal(SAMPLE_TIME),
+        "tolerance": TOLERANCE[precision],
+    }
+    return _environment().get_template("test_model.c.j2").render(context, template="test_model.c.j2")
+
+
+def _version() -> str:
+    from . import __version__
+    return __version__
+
+
+def write_generated(root: Path, names=None) -> list:
+    """Write every example under ``root/<name>/``; return the paths whose content changed."""
+    changed = []
+    for name in names or EXAMPLES:
+        folder = Path(root) / name
+        folder.mkdir(parents=True, exist_ok=True)
+        for filename, text in example_files(name).items():
+            path = folder / filename
+            if not path.exists() or path.read_text() != text:
+                path.write_text(text)
+                changed.append(path)
+    return changed
