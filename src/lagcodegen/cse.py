@@ -21,8 +21,9 @@ OUTPUT_KERNELS = {
     "rhs": "dynamics",
     "energy": "energy",
     "points": "points",
+    "jacobian": "jacobian",
 }
-DEFAULT_OUTPUTS = ("mass_matrix", "forcing", "accel", "rhs", "energy", "points")
+DEFAULT_OUTPUTS = ("mass_matrix", "forcing", "accel", "rhs", "energy", "points", "jacobian")
 
 
 class KernelError(ValueError):
@@ -41,7 +42,8 @@ class ReducedKernel:
         In evaluation order; each may use inputs and earlier temporaries.
     results : tuple of (label, Expr)
         ``label`` is (block, i, j): ("M", j, k) lower triangle, ("F", j, 0), ("K", j, 0),
-        ("E", 0, 0), ("P", point, component).
+        ("E", 0, 0), ("P", point, component); the jacobian kernel adds ("G", j, c) = dG_j/dx_c
+        for G = M a - F (a the accelerations, `ReducedSystem.accelerations`) and ("DK", j, c).
     ops_before, ops_after : int
         ``sympy.count_ops`` of the results before CSE, and of temporaries plus results after.
     """
@@ -66,6 +68,7 @@ class ReducedSystem:
     """Everything emission needs: symbol order, parameter split and the kernels.
 
     ``kinematics_identity`` is True when qd = u (every Lagrange route), so the C copies u.
+    ``accelerations`` are the symbols a_j standing for ud_j in the jacobian kernel.
     ``ops_saved_by_fixing`` counts operations removed, before CSE, by folding fixed parameters.
     """
 
@@ -74,8 +77,10 @@ class ReducedSystem:
     t: sp.Symbol
     q: tuple
     u: tuple
+    accelerations: tuple
     free_parameters: tuple
     fixed_parameters: tuple
+    parameter_values: dict
     point_names: tuple
     outputs: tuple
     kernels: tuple
@@ -104,7 +109,8 @@ def reduce_expressions(eom: EquationsOfMotion, outputs=DEFAULT_OUTPUTS,
     outputs = _checked_outputs(eom, outputs)
     fixed_values = _checked_fixed(eom, fixed or {})
     folding = {p: sp.Float(v, 17) for p, v in fixed_values}
-    blocks = _output_blocks(eom, outputs)
+    accelerations = tuple(sp.Dummy(f"{s.name}_dd") for s in eom.u)
+    blocks = _output_blocks(eom, outputs, accelerations)
     saved = 0
     kernels = []
     for name, labelled in blocks.items():
@@ -116,9 +122,9 @@ def reduce_expressions(eom: EquationsOfMotion, outputs=DEFAULT_OUTPUTS,
     kinematics_identity = list(eom.kinematics) == list(eom.u)
     fixed_symbols = {p for p, _ in fixed_values}
     return ReducedSystem(
-        name=eom.name, route=eom.route, t=eom.t, q=eom.q, u=eom.u,
+        name=eom.name, route=eom.route, t=eom.t, q=eom.q, u=eom.u, accelerations=accelerations,
         free_parameters=tuple(p for p in eom.parameters if p not in fixed_symbols),
-        fixed_parameters=fixed_values, point_names=tuple(name for name, _ in eom.points),
+        fixed_parameters=fixed_values, parameter_values=dict(eom.parameter_values), point_names=tuple(name for name, _ in eom.points),
         outputs=tuple(outputs), kernels=tuple(kernels), kinematics_identity=kinematics_identity,
         ops_saved_by_fixing=int(saved))
 
@@ -155,7 +161,7 @@ def _checked_fixed(eom: EquationsOfMotion, fixed: Mapping) -> tuple:
     return tuple(sorted(values, key=lambda pv: order[pv[0]]))
 
 
-def _output_blocks(eom: EquationsOfMotion, outputs) -> dict:
+def _output_blocks(eom: EquationsOfMotion, outputs, accelerations) -> dict:
     """kernel name -> [(label, expr)], in a fixed order."""
     n = eom.n
     M = eom.mass_matrix
@@ -176,6 +182,8 @@ def _output_blocks(eom: EquationsOfMotion, outputs) -> dict:
             blocks[kernel] = kin + lower + forcing
         elif kernel == "energy":
             blocks[kernel] = [(("E", 0, 0), eom.energy)]
+        elif kernel == "jacobian":
+            blocks[kernel] = lower + _jacobian_block(eom, accelerations)
         elif kernel == "points":
             blocks[kernel] = [(("P", i, c), pos[c]) for i, (_, pos) in enumerate(eom.points)
                               for c in range(len(pos))]
@@ -188,3 +196,28 @@ def _reduce(name: str, labels: list, exprs: list) -> ReducedKernel:
     after = int(sum(sp.count_ops(v) for _, v in replacements) + sp.count_ops(reduced))
     return ReducedKernel(name=name, temporaries=tuple(replacements),
                          results=tuple(zip(labels, reduced)), ops_before=before, ops_after=after)
+
+
+def _jacobian_block(eom: EquationsOfMotion, a) -> list:
+    """d/dx of G = M(q, t) a - F(q, u, t) (and of K when qd != u), x = (q, u).
+
+    With a = ud the Jacobian of the first-order right-hand side is
+    [[dK/dq, dK/du], [-M^-1 dG/dq, -M^-1 dG/du]] (Hairer-Wanner II, sec. VI.1 for the index-1 form).
+    """
+    n = eom.n
+    x = list(eom.q) + list(eom.u)
+    G = [sp.Add(*[eom.mass_matrix[j, k] * a[k] for k in range(n) if eom.mass_matrix[j, k] != 0]) - eom.forcing[j]
+         for j in range(n)]
+    rows = [(("G", j, c), _classical(G[j].diff(xc))) for j in range(n) for c, xc in enumerate(x)]
+    if list(eom.kinematics) != list(eom.u):
+        rows += [(("DK", j, c), _classical(eom.kinematics[j].diff(xc))) for j in range(n) for c, xc in enumerate(x)]
+    return rows
+
+
+def _classical(derivative):
+    """Drop DiracDelta from d sign(u)/du (Coulomb, rolling friction): the Jacobian off the switch."""
+    switch = lambda e: isinstance(e, sp.DiracDelta) or (  # noqa: E731
+        isinstance(e, sp.Derivative) and isinstance(e.expr, sp.sign))
+    if not derivative.has(sp.DiracDelta, sp.Derivative):
+        return derivative
+    return derivative.replace(switch, lambda e: sp.S.Zero)

@@ -29,6 +29,10 @@ class KernelLayout:
         Named points whose positions the ``points`` function writes (3 values each).
     functions : tuple of str
         Exported C function names.
+    methods : tuple of str
+        Integration schemes compiled in; a method's number in ``simulate`` is its index here.
+    defaults : tuple of (str, float)
+        Default values of free parameters that have one.
     """
 
     model: str
@@ -40,6 +44,8 @@ class KernelLayout:
     fixed: tuple
     points: tuple
     functions: tuple
+    methods: tuple = ()
+    defaults: tuple = ()
 
     @property
     def n(self) -> int:
@@ -76,9 +82,14 @@ STATUS_CODES = (
     ("LCG_SINGULAR_MASS_MATRIX", 1, "a pivot of the LDL^T factorization of M was not positive"),
     ("LCG_NONFINITE_STATE", 2, "the state became NaN or infinite"),
     ("LCG_NEWTON_FAILED", 3, "an implicit step's Newton iteration did not converge"),
+    ("LCG_UNKNOWN_METHOD", 4, "the method number is not compiled into this kernel"),
 )
+#: simplified-Newton stopping rule of the implicit steppers: max |dW| / (1 + |x|) per precision
+NEWTON_TOLERANCE = {"double": 1e-13, "float": 1e-5}
+NEWTON_MAX_ITERATIONS = 30
 #: local names the generated code uses itself; user symbols are renamed around them
-_RESERVED = {"t", "x", "p", "out", "M", "F", "ud", "qd", "xdot", "lcg_status"}
+_RESERVED = {"t", "x", "p", "out", "M", "F", "ud", "qd", "xdot", "B", "J", "c", "status", "work", "h",
+             "i", "j", "k", "m", "s", "method", "stride", "n_steps", "steps_done"}
 
 
 class EmitError(ValueError):
@@ -107,6 +118,7 @@ class _Names:
     symbols: dict   # Symbol -> C local name
     state_index: dict  # Symbol -> index into x
     param_index: dict  # Symbol -> index into p
+    accel_index: dict  # Symbol -> index into ud (jacobian kernel only)
 
 
 def _names(system: ReducedSystem, model_name: str) -> _Names:
@@ -115,16 +127,18 @@ def _names(system: ReducedSystem, model_name: str) -> _Names:
     symbols = {}
     for s in dict.fromkeys(temporaries):  # cse names first: tmp0, tmp1, ...
         symbols[s] = mangle(s.name, taken)
-    for s in system.q + system.u + system.free_parameters:
+    for s in system.q + system.u + system.free_parameters + system.accelerations:
         symbols[s] = mangle(s.name, taken)
     symbols[system.t] = "t"
     prefix = "lcg_" + mangle(model_name)
     state = {s: i for i, s in enumerate(system.q + system.u)}
     params = {s: i for i, s in enumerate(system.free_parameters)}
-    return _Names(prefix=prefix, symbols=symbols, state_index=state, param_index=params)
+    accel = {s: i for i, s in enumerate(system.accelerations)}
+    return _Names(prefix=prefix, symbols=symbols, state_index=state, param_index=params, accel_index=accel)
 
 
-def render_sources(system: ReducedSystem, precision: str = "double", model_name: str | None = None) -> CSources:
+def render_sources(system: ReducedSystem, precision: str = "double", model_name: str | None = None,
+                   methods=()) -> CSources:
     """Render the C header, source and cffi cdef of ``system``.
 
     Parameters
@@ -134,6 +148,9 @@ def render_sources(system: ReducedSystem, precision: str = "double", model_name:
         Scalar type of every array and literal (float: ``sinf``, ``1.0F``, no promotion).
     model_name : str, optional
         Name used for the C prefix; defaults to the model's name.
+    methods : sequence of str
+        Integration schemes (`schemes.SCHEMES`) to compile as ``step_<name>`` functions and into
+        the ``simulate`` driver; needs the ``rhs`` output, implicit ones also ``jacobian``.
     """
     if precision not in PRECISIONS:
         raise EmitError(f"precision must be one of {PRECISIONS}, got {precision!r}")
@@ -146,8 +163,12 @@ def render_sources(system: ReducedSystem, precision: str = "double", model_name:
         functions.append(_dynamics_record(system, names, printer, real))
     functions += [_function_record(system, system.kernel(_kernel_of(out)), names, printer, real, out)
                   for out in system.outputs]
-    layout = _layout(system, names, real, model_name, functions)
-    context = _context(system, names, layout, functions, real)
+    steppers = _stepper_context(system, names, real, list(methods))
+    stepper_prototypes = steppers.pop("exported")
+    layout = _layout(system, names, real, model_name, functions + stepper_prototypes,
+                     tuple(m["name"] for m in steppers["methods"]))
+    context = _context(system, names, layout, functions, real) | steppers
+    context["prototypes"] = context["prototypes"] + stepper_prototypes
     env = _environment()
     header_name = f"{names.prefix}.h"
     source_name = f"{names.prefix}.c"
@@ -179,6 +200,9 @@ def _input_lines(kernel: ReducedKernel, names: _Names, real: str) -> tuple[list,
     for s, i in names.param_index.items():
         if s in used:
             lines.append(f"const {real} {names.symbols[s]} = p[{i}];")
+    for s, i in names.accel_index.items():
+        if s in used:
+            lines.append(f"const {real} {names.symbols[s]} = ud[{i}];")
     unused = []
     if not any(s in used for s in names.state_index):
         unused.append("x")
@@ -250,6 +274,8 @@ def _function_record(system, kernel, names, printer, real, output):
             body.append(f"out[{3 * i + c}] = {_print(printer, expr, f'point {point}')};  /* {point}.{'xyz'[c]} */")
         return _record(f"void {prefix}_points({args}, {real} *out)",
                        f"Positions of {len(system.point_names)} named points, 3 values each.", body)
+    if output == "jacobian":
+        return _jacobian_record(system, kernel, names, printer, real)
     raise EmitError(f"unknown output {output!r}")
 
 
@@ -283,21 +309,27 @@ def _dynamics_record(system, names, printer, real) -> dict:
 
 
 def ldlt_solve_lines(n: int, nonzero: set, real: str) -> list:
-    """Unrolled LDL^T factorization of M (locals M_j_k, lower) and solve of M ud = F (locals F_j).
+    """Unrolled LDL^T factorization of M (locals M_j_k) and solve of M ud = F (locals F_j)."""
+    factor, LD = ldlt_factor_lines(n, nonzero, real)
+    return factor + ldlt_substitution_lines(n, LD, real, lambda i: f"F_{i}", lambda i: f"ud[{i}]")
+
+
+def _minus_terms(pairs) -> str:
+    return "".join(f" - {a}*{b}" for a, b in pairs)
+
+
+def ldlt_factor_lines(n: int, nonzero: set, real: str) -> tuple[list, set]:
+    """Unrolled LDL^T factorization of the symmetric M held in locals M_j_k (j >= k).
 
     Structural zeros of M are skipped. A pivot that is not positive (or NaN) returns
-    LCG_SINGULAR_MASS_MATRIX, so a singular M never produces NaNs silently.
+    LCG_SINGULAR_MASS_MATRIX, so a singular M never produces NaNs silently. Returns the lines
+    and the set of (i, k) whose L_i_k is nonzero.
     """
-    zero = _literal(0, real)
-    one = _literal(1, real)
-    lines = [f"/* Solve M ud = F: unrolled LDL^T ({n} x {n}) */"]
+    zero, one = _literal(0, real), _literal(1, real)
+    lines = [f"/* Factor M = L D L^T: unrolled ({n} x {n}) */"]
     LD: set = set()  # (i, k) with LD_i_k = L_i_k * D_k nonzero
-
-    def terms(pairs):
-        return "".join(f" - {a}*{b}" for a, b in pairs)
-
     for j in range(n):
-        pivot = terms((f"L_{j}_{k}", f"LD_{j}_{k}") for k in range(j) if (j, k) in LD)
+        pivot = _minus_terms((f"L_{j}_{k}", f"LD_{j}_{k}") for k in range(j) if (j, k) in LD)
         lines.append(f"const {real} D_{j} = M_{j}_{j}{pivot};")
         lines.append(f"if (!(D_{j} > {zero})) return LCG_SINGULAR_MASS_MATRIX;")
         lines.append(f"const {real} Dinv_{j} = {one} / D_{j};")
@@ -306,26 +338,74 @@ def ldlt_solve_lines(n: int, nonzero: set, real: str) -> list:
             if (i, j) not in nonzero and not pairs:
                 continue
             head = f"M_{i}_{j}" if (i, j) in nonzero else zero
-            lines.append(f"const {real} LD_{i}_{j} = {head}{terms(pairs)};")
+            lines.append(f"const {real} LD_{i}_{j} = {head}{_minus_terms(pairs)};")
             lines.append(f"const {real} L_{i}_{j} = LD_{i}_{j} * Dinv_{j};")
             LD.add((i, j))
+    return lines, LD
+
+
+def ldlt_substitution_lines(n: int, LD: set, real: str, rhs, out) -> list:
+    """Forward, diagonal and backward substitution with the factors; rhs(i), out(i) name C lvalues."""
+    lines = ["/* Substitute: L y = b, D z = y, L^T w = z */"]
     for i in range(n):
-        lines.append(f"const {real} y_{i} = F_{i}{terms((f'L_{i}_{k}', f'y_{k}') for k in range(i) if (i, k) in LD)};")
+        lower = _minus_terms((f"L_{i}_{k}", f"y_{k}") for k in range(i) if (i, k) in LD)
+        lines.append(f"const {real} y_{i} = {rhs(i)}{lower};")
     for i in reversed(range(n)):
-        back = terms((f"L_{k}_{i}", f"w_{k}") for k in range(i + 1, n) if (k, i) in LD)
+        back = _minus_terms((f"L_{k}_{i}", f"w_{k}") for k in range(i + 1, n) if (k, i) in LD)
         lines.append(f"const {real} w_{i} = y_{i} * Dinv_{i}{back};")
-        lines.append(f"ud[{i}] = w_{i};")
+        lines.append(f"{out(i)} = w_{i};")
     return lines
 
 
-def _layout(system: ReducedSystem, names: _Names, real: str, model_name: str, functions: list) -> KernelLayout:
+def _jacobian_record(system, kernel, names, printer, real) -> dict:
+    """J = df/dx of the first-order system: [[dK/dq, dK/du], [-M^-1 dG/dq, -M^-1 dG/du]]."""
+    n, prefix = len(system.q), names.prefix
+    size = 2 * n
+    body = [f"{real} qd[{n}];", f"{real} ud[{n}];", f"{real} B[{n}][{size}];", "int c;",
+            f"const int status = {prefix}_dynamics(t, x, p, qd, ud);",
+            "if (status != LCG_OK) return status;"]
+    body += _body_head(kernel, names, printer, real, touches_state=True)
+    M = _results(kernel, "M")
+    body.append("/* Mass matrix, lower triangle */")
+    for (j, k), expr in M.items():
+        if expr != 0 or j == k:
+            body.append(f"const {real} M_{j}_{k} = {_print(printer, expr, f'M[{j}][{k}]')};")
+    body.append("/* B = -dG/dx, G = M ud - F */")
+    for (j, c), expr in _results(kernel, "G").items():
+        value = f"-({_print(printer, expr, f'dG[{j}]/dx[{c}]')})" if expr != 0 else _literal(0, real)
+        body.append(f"B[{j}][{c}] = {value};")
+    body.append("/* Kinematic rows dK/dx */")
+    DK = _results(kernel, "DK")
+    for j in range(n):
+        for c in range(size):
+            if DK:
+                value = _print(printer, DK[(j, c)], f"dK[{j}]/dx[{c}]")
+            else:
+                value = _literal(1 if c == n + j else 0, real)
+            body.append(f"J[{j * size + c}] = {value};")
+    factor, LD = ldlt_factor_lines(n, {jk for jk, e in M.items() if e != 0}, real)
+    body += factor
+    body.append(f"for (c = 0; c < {size}; ++c) {{")
+    solve = ldlt_substitution_lines(n, LD, real, lambda i: f"B[{i}][c]",
+                                    lambda i: f"J[{(n + i) * size} + c]")
+    body += ["    " + line for line in solve]
+    body += ["}", "return LCG_OK;"]
+    return _record(f"int {prefix}_jacobian({real} t, const {real} *x, const {real} *p, {real} *J)",
+                   f"Jacobian df/dx of the first-order right-hand side, row-major {size} x {size}; "
+                   "returns a status code.", body)
+
+
+def _layout(system: ReducedSystem, names: _Names, real: str, model_name: str, functions: list,
+            methods: tuple) -> KernelLayout:
     exported = tuple(f["decl"].split("(")[0].split()[-1] for f in functions if not f["static"])
     return KernelLayout(
         model=model_name, prefix=names.prefix, precision=real,
         coordinates=tuple(s.name for s in system.q), speeds=tuple(s.name for s in system.u),
         parameters=tuple(s.name for s in system.free_parameters),
         fixed=tuple((s.name, v) for s, v in system.fixed_parameters),
-        points=system.point_names, functions=exported)
+        points=system.point_names, functions=exported, methods=methods,
+        defaults=tuple((p.name, system.parameter_values[p]) for p in system.free_parameters
+                       if p in system.parameter_values))
 
 
 def _context(system: ReducedSystem, names: _Names, layout: KernelLayout, functions: list, real: str) -> dict:
@@ -351,3 +431,68 @@ def _context(system: ReducedSystem, names: _Names, layout: KernelLayout, functio
         "status_codes": [{"name": c, "value": v, "doc": d} for c, v, d in STATUS_CODES],
         "prototypes": [f for f in functions if not f["static"]], "functions": functions,
     }
+
+
+def _stepper_context(system: ReducedSystem, names: _Names, real: str, methods: list) -> dict:
+    """Template context of the integrators: coefficient tables, step functions, the driver."""
+    from .schemes import KIND_EXPLICIT, KIND_IMPLICIT, get_scheme, scheme_kind
+
+    n, prefix = len(system.q), names.prefix
+    N = 2 * n
+    points = len(system.point_names) if "points" in system.outputs else 0
+    context = {"has_steppers": bool(methods), "tableaux": [], "methods": [], "exported": [],
+               "has_explicit": False, "has_implicit": False, "has_symplectic_euler": False,
+               "identity_kinematics": system.kinematics_identity, "zero": _literal(0, real),
+               "one": _literal(1, real), "fsuffix": "f" if real == "float" else "",
+               "newton_tolerance": _literal(NEWTON_TOLERANCE[real], real), "newton_max": NEWTON_MAX_ITERATIONS,
+               "n_state_squared": N * N, "has_energy": "energy" in system.outputs, "has_points": points > 0,
+               "n_point_values": 3 * points, "work_size": N, "method_rows": []}
+    if not methods:
+        return context
+    if "rhs" not in system.outputs and "accel" not in system.outputs:
+        raise EmitError("integrators need the 'rhs' output; add it to outputs")
+    for number, name in enumerate(dict.fromkeys(methods)):
+        scheme = get_scheme(name)
+        kind = scheme_kind(scheme)
+        if kind == KIND_IMPLICIT and "jacobian" not in system.outputs:
+            raise EmitError(f"method {name!r} is implicit and needs the 'jacobian' output; add it to outputs")
+        record = {"name": scheme.name, "id": number, "title": scheme.title or scheme.name, "order": scheme.order}
+        if kind in (KIND_EXPLICIT, KIND_IMPLICIT):
+            context["tableaux"].append(_tableau_record(scheme, real))
+            s = scheme.stages
+            stepper = "erk_step" if kind == KIND_EXPLICIT else "irk_step"
+            arrays = f"{prefix}_{scheme.name}_a, {prefix}_{scheme.name}_b, {prefix}_{scheme.name}_c"
+            record["work"] = (s + 1) * N if kind == KIND_EXPLICIT else 3 * s * N + (s * N) ** 2 + N * N + N
+            record["call"] = f"{prefix}_{stepper}({s}, {arrays}, *t, x, p, h, work)"
+            record["call_in_driver"] = f"{prefix}_{stepper}({s}, {arrays}, t, x, p, h, scratch)"
+            context["has_explicit" if kind == KIND_EXPLICIT else "has_implicit"] = True
+        else:
+            record["work"] = N
+            record["call"] = f"{prefix}_symplectic_euler_step(*t, x, p, h, work)"
+            record["call_in_driver"] = f"{prefix}_symplectic_euler_step(t, x, p, h, scratch)"
+            context["has_symplectic_euler"] = True
+        context["methods"].append(record)
+        context["method_rows"].append({"macro": f"{prefix.upper()}_METHOD_{scheme.name.upper()}", "id": number,
+                                       "work_macro": f"{prefix.upper()}_WORK_{scheme.name.upper()}",
+                                       "work": record["work"]})
+        context["exported"].append(_record(
+            f"int {prefix}_step_{scheme.name}({real} *t, {real} *x, const {real} *p, {real} h, {real} *work)",
+            f"One step of {record['title']} (order {scheme.order}); work holds {record['work']} values.", []))
+    context["work_size"] = N + max(m["work"] for m in context["methods"])
+    decl = (f"int {prefix}_simulate(int method, {real} t0, const {real} *x0, const {real} *p, {real} h, "
+            f"long n_steps, long stride, {real} *t_out, {real} *x_out, {real} *energy_out, "
+            f"{real} *points_out, {real} *work, long *steps_done)")
+    context["simulate_decl"] = decl
+    context["exported"].append(_record(decl, "Fixed-step integration loop; returns a status code.", []))
+    return context
+
+
+def _tableau_record(scheme, real: str) -> dict:
+    s = scheme.stages
+    value = (lambda v: _literal(float(v), real))
+    rows = [{"entries": ", ".join(value(v) for v in row), "comment": ", ".join(str(v) for v in row)}
+            for row in scheme.a]
+    return {"name": scheme.name, "title": scheme.title or scheme.name, "order": scheme.order, "stages": s,
+            "stages_squared": s * s, "a_rows": rows,
+            "b_values": ", ".join(value(v) for v in scheme.b), "b_comment": ", ".join(map(str, scheme.b)),
+            "c_values": ", ".join(value(v) for v in scheme.c), "c_comment": ", ".join(map(str, scheme.c))}

@@ -66,14 +66,15 @@ def _formed_method(obj):
 def _energies(method, model: Model, to_plain):
     """(T, V): from the Lagrangian L = T - V split at u = 0, or from Kane's bodies."""
     if isinstance(method, me.LagrangesMethod):
-        L = to_plain(method._L, "Lagrangian")
+        lagrangian = method._L[0] if isinstance(method._L, sp.MatrixBase) else method._L
+        L = to_plain(lagrangian, "Lagrangian")
         rest = to_plain(sp.Matrix([c.diff(TIME) for c in method.q]), "speeds")
         at_rest = L.xreplace({s: 0 for s in rest})
         return L - at_rest, -at_rest + to_plain(model.potential_energy, "potential energy")
     bodies = method.bodies or ()
     if not bodies or model.frame is None:
         return None, None
-    T = to_plain(me.kinetic_energy(model.frame, *bodies), "kinetic energy")
+    T = to_plain(me.kinetic_energy(model.frame, *bodies).xreplace(method.kindiffdict()), "kinetic energy")
     V = to_plain(sum((b.potential_energy for b in bodies), sp.S.Zero) + model.potential_energy,
                  "potential energy")
     return T, V

@@ -31,8 +31,10 @@ class ModelError(ValueError):
 
 
 def _as_expr(value: Any, what: str) -> sp.Expr:
-    if isinstance(value, sp.Basic):
+    if isinstance(value, sp.Expr) and not getattr(value, "is_Matrix", False):
         return value
+    if isinstance(value, sp.Basic):
+        raise ModelError(f"{what} must be a scalar sympy expression, got {type(value).__name__}: {value}")
     if isinstance(value, (int, float)) and not isinstance(value, bool):
         return sp.sympify(value)
     raise ModelError(f"{what} must be a sympy expression or a number, got {type(value).__name__}: {value!r}")
@@ -112,6 +114,9 @@ class Model:
     def __post_init__(self) -> None:
         self._check_name()
         set_ = lambda attr, value: object.__setattr__(self, attr, value)  # noqa: E731 (frozen)
+        for attr in ("coordinates", "parameters", "bodies", "loads"):
+            if not isinstance(getattr(self, attr), (list, tuple)):
+                raise ModelError(f"{attr} must be a list or tuple, got {type(getattr(self, attr)).__name__}")
         set_("parameters", tuple(self.parameters))
         self._check_parameters()
         if self.sympy_model is not None:
@@ -218,6 +223,8 @@ class Model:
                 for i, c in enumerate(pos):
                     exprs.append((f"point {name!r} component {i}", _as_expr(c, f"point {name!r}")))
         if self.gravity is not None:
+            if not isinstance(self.gravity, me.Vector):
+                raise ModelError(f"gravity must be a sympy.physics.vector Vector (e.g. -g*N.y), got {self.gravity!r}")
             exprs.append(("gravity", self.gravity.to_matrix(self.frame)))
         check_declared(exprs, self.parameters, self.coordinates)
 
@@ -232,6 +239,12 @@ def check_declared(exprs, parameters, coordinates, extra=()) -> None:
         if expr is None:
             continue
         extra = sorted(expr.free_symbols - allowed, key=str)
+        declared = {p.name: p for p in parameters}
+        for sym in extra:
+            if sym.name in declared:
+                raise ModelError(
+                    f"{what} uses symbol {sym.name!r} with assumptions {sym.assumptions0} but the declared "
+                    f"parameter {sym.name!r} has {declared[sym.name].assumptions0}; use the same Symbol")
         if extra:
             raise ModelError(
                 f"{what} uses symbols not declared as parameters: {', '.join(map(str, extra))} "
@@ -243,6 +256,8 @@ def check_declared(exprs, parameters, coordinates, extra=()) -> None:
 
 
 def _as_load(load: Any) -> Load:
+    if isinstance(load, Load):
+        return load
     try:
         where, vector = load  # also unpacks sympy's Force and Torque (named tuples)
     except (TypeError, ValueError):

@@ -200,7 +200,6 @@ class CPrinter(C99CodePrinter):
         scalar = float32 if precision == "float" else float64
         super().__init__({"type_aliases": {real: scalar}, "math_macros": {}})
         self.precision = precision
-        self.scalar = precision
         self._names = names
 
     # --- names ---------------------------------------------------------------------------
@@ -308,7 +307,7 @@ class CPrinter(C99CodePrinter):
 
     # --- piecewise and friends -----------------------------------------------------------
     def _cast(self, s: str) -> str:
-        return f"(({self.scalar})({s}))"
+        return f"(({self.precision})({s}))"
 
     def _print_sign(self, expr):
         x = self._base(expr.args[0])

@@ -20,7 +20,9 @@ from .emit import _environment, render_sources
 #: time of the C tests' sample state (rheonomic models depend on it)
 SAMPLE_TIME = 0.25
 TOLERANCE = {"double": "1e-12", "float": "2e-4"}
-EXAMPLE_OUTPUTS = ("mass_matrix", "forcing", "accel", "rhs", "energy", "points")
+EXAMPLE_OUTPUTS = ("mass_matrix", "forcing", "accel", "rhs", "energy", "points", "jacobian")
+#: steppers compiled into the committed examples (embedded users get these step functions)
+EXAMPLE_METHODS = ("rk4", "symplectic_euler", "implicit_midpoint")
 
 
 @dataclass(frozen=True)
@@ -55,7 +57,7 @@ def example_files(name: str) -> dict:
     sample = sample_state(eom)
     files = {}
     for precision, suffix in (("double", ""), ("float", "_f32")):
-        sources = render_sources(system, precision, model_name=name + suffix)
+        sources = render_sources(system, precision, model_name=name + suffix, methods=EXAMPLE_METHODS)
         files[sources.header_name] = sources.header
         files[sources.source_name] = sources.source
         files[f"test_{sources.layout.prefix}.c"] = _c_test(sources, sample, precision)

@@ -1,0 +1,264 @@
+"""Stage: CSources -> CompiledSystem (cffi API mode, out of line, cached on disk).
+
+``build_module`` writes the generated ``.h``/``.c`` into a private directory inside the
+cache dir, compiles them with ``ffibuilder.compile`` together with cffi's wrapper, and
+installs the directory with one ``os.replace`` (see ``cache.py``). The key covers
+everything that changes the binary: C text, cdef, flags, compiler, Python, cffi and
+lagcodegen versions, like cffi's ``Verifier`` and numba's index key.
+"""
+from __future__ import annotations
+
+import contextlib
+import functools
+import importlib.util
+import os
+import re
+import shlex
+import shutil
+import subprocess
+import sys
+import sysconfig
+import threading
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import cffi
+
+from . import __version__, cache
+from .emit import CSources, KernelLayout
+from .printer import mangle
+
+__all__ = ["BuildError", "CompiledSystem", "build_module", "compiler_available", "DEFAULT_FLAGS"]
+
+# A cdef naming a function the header does not declare fails to compile (with gcc's message)
+# instead of producing a module that cannot be imported.
+DEFAULT_FLAGS = ("-O2", "-std=c99", "-Werror=implicit-function-declaration")
+_INSTALL_HINT = ("install gcc, e.g. apt-get install gcc / build-essential, "
+                 "or set CC to a working C compiler")
+_EXT_SUFFIX = sysconfig.get_config_var("EXT_SUFFIX") or ".so"
+_FILE_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]*")
+_LOCK = threading.RLock()  # one build at a time per process: cffi chdirs while compiling
+_MEMO: dict[tuple[str, str], tuple[Any, Any, Path]] = {}  # (cache dir, key) -> (ffi, lib, .so)
+
+
+class BuildError(RuntimeError):
+    """A C build failed. ``command``, ``stderr`` and ``c_path`` (the kept ``.c``) say why and where."""
+
+    def __init__(self, message: str, *, command: str = "", stderr: str = "", c_path: Path | None = None):
+        super().__init__(message)
+        self.command, self.stderr, self.c_path = command, stderr, c_path
+
+
+@dataclass(frozen=True)
+class CompiledSystem:
+    """A loaded kernel module: cffi ``ffi`` and ``lib``, and where it came from.
+
+    Pickles as (key, path, module name, layout); unpickling re-imports the ``.so`` from
+    ``path`` (once per process), so worker processes get a usable ``lib``.
+    """
+
+    ffi: Any = field(repr=False, compare=False)
+    lib: Any = field(repr=False, compare=False)
+    key: str
+    path: Path
+    module_name: str
+    layout: KernelLayout
+
+    def __reduce__(self):
+        return (_restore, (self.key, str(self.path), self.module_name, self.layout))
+
+
+def _restore(key: str, path: str, module_name: str, layout: KernelLayout) -> CompiledSystem:
+    if not Path(path).is_file():
+        raise BuildError(f"compiled module {path} of model {layout.model!r} no longer exists; "
+                         "call build_module again")
+    module = _import(path, module_name)
+    return CompiledSystem(module.ffi, module.lib, key, Path(path), module_name, layout)
+
+
+@functools.lru_cache(maxsize=None)
+def _import(path: str, module_name: str):
+    """Import the extension at ``path`` (never via sys.path or the current directory)."""
+    spec = importlib.util.spec_from_file_location(module_name, path)
+    if spec is None or spec.loader is None:
+        raise ImportError(f"{path} is not an importable extension module")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def _compiler_command(compiler: str | None) -> list[str]:
+    text = compiler or os.environ.get("CC") or sysconfig.get_config_var("CC") or "cc"
+    return shlex.split(text)
+
+
+@functools.lru_cache(maxsize=None)
+def _compiler_identity(command: tuple[str, ...]) -> str:
+    """``<command>: <first line of --version>``; BuildError with an install hint if it cannot run."""
+    shown = shlex.join(command)
+    try:
+        run = subprocess.run([*command, "--version"], capture_output=True, text=True, timeout=60)
+    except (OSError, subprocess.TimeoutExpired) as exc:
+        raise BuildError(f"no working C compiler: `{shown}` could not be run ({exc}); "
+                         f"{_INSTALL_HINT}", command=shown) from None
+    lines = (run.stdout or run.stderr).strip().splitlines()
+    if run.returncode != 0 or not lines:
+        raise BuildError(f"no working C compiler: `{shown} --version` failed; {_INSTALL_HINT}",
+                         command=shown, stderr=run.stderr)
+    return f"{shown}: {lines[0]}"
+
+
+def compiler_available(compiler: str | None = None) -> bool:
+    """True if the C compiler runs and Python's headers (``Python.h``) are installed."""
+    try:
+        _compiler_identity(tuple(_compiler_command(compiler)))
+    except BuildError:
+        return False
+    return (Path(sysconfig.get_paths()["include"]) / "Python.h").is_file()
+
+
+@contextlib.contextmanager
+def _compiler_env(compiler: str | None):
+    """distutils reads the compiler from ``$CC``; set it for the duration of one build."""
+    if compiler is None:
+        yield
+        return
+    saved = os.environ.get("CC")
+    os.environ["CC"] = compiler
+    try:
+        yield
+    finally:
+        if saved is None:
+            os.environ.pop("CC", None)
+        else:
+            os.environ["CC"] = saved
+
+
+def _check_names(sources: CSources, module_name: str) -> None:
+    for attr, ext in (("header_name", ".h"), ("source_name", ".c")):
+        name = getattr(sources, attr)
+        if not _FILE_NAME.fullmatch(name) or not name.endswith(ext) or name == module_name + ".c":
+            raise BuildError(f"CSources.{attr} {name!r} must be a plain file name ending in {ext}")
+
+
+def _key(sources: CSources, flags: list[str], identity: str) -> str:
+    return cache.source_key({
+        "header_name": sources.header_name, "header": sources.header,
+        "source_name": sources.source_name, "source": sources.source, "cdef": sources.cdef,
+        "flags": shlex.join(flags), "compiler": identity,
+        "python": f"{sys.implementation.cache_tag}-{sysconfig.get_platform()}{_EXT_SUFFIX}",
+        "cffi": cffi.__version__, "lagcodegen": __version__,
+    })
+
+
+def build_module(sources: CSources, *, cache_dir=None, extra_compile_args=(), compiler=None) -> CompiledSystem:
+    """Compile (or fetch from the cache) and load the C kernels of one model.
+
+    Parameters
+    ----------
+    sources : CSources
+        Output of ``emit.render_sources``.
+    cache_dir : path, optional
+        Overrides ``$LAGCODEGEN_CACHE_DIR`` and the user cache dir.
+    extra_compile_args : sequence of str
+        Appended to :data:`DEFAULT_FLAGS`; part of the key.
+    compiler : str, optional
+        Compiler command (default ``$CC``, else Python's configured compiler); part of the key.
+
+    Raises
+    ------
+    BuildError
+        No compiler, or the C does not compile: the message holds the compiler's errors
+        and the path of the kept ``.c``.
+    """
+    flags = [*DEFAULT_FLAGS, *extra_compile_args]
+    command = _compiler_command(compiler)
+    key = _key(sources, flags, _compiler_identity(tuple(command)))
+    module_name = f"_lcg_{mangle(sources.layout.model)[:40]}_{key[:16]}"
+    _check_names(sources, module_name)
+    with _LOCK:
+        root = cache.cache_dir(cache_dir)
+        if (str(root), key) not in _MEMO:
+            _MEMO[str(root), key] = _fetch(sources, root, key, module_name, flags, command, compiler)
+        ffi, lib, so_path = _MEMO[str(root), key]
+    return CompiledSystem(ffi, lib, key, so_path, module_name, sources.layout)
+
+
+def _fetch(sources, root: Path, key: str, module_name: str, flags, command, compiler):
+    """Load the entry for ``key``, building it if missing or corrupt."""
+    entry, so_name = root / module_name, module_name + _EXT_SUFFIX
+    for attempt in range(2):
+        problem = cache.entry_problem(entry, key, so_name)
+        if problem is not None:
+            if problem != "missing":
+                cache.evict_entry(entry)
+            _compile_entry(sources, root, entry, module_name, flags, command, compiler, key)
+        try:
+            module = _import(str(entry / so_name), module_name)
+            return module.ffi, module.lib, entry / so_name
+        except ImportError as exc:  # e.g. a corrupt .so whose checksum was rewritten
+            if attempt == 1 or problem is not None:
+                kept = cache.keep_failed(entry, root, module_name)
+                raise BuildError(f"built module {module_name} cannot be imported: {exc}\n"
+                                 f"kept sources: {kept / sources.source_name}",
+                                 c_path=kept / sources.source_name) from None
+            cache.evict_entry(entry)
+    raise AssertionError("unreachable")
+
+
+def _compile_entry(sources, root, entry, module_name, flags, command, compiler, key) -> None:
+    """Build in a private directory, then install it as ``entry`` (or keep it on failure)."""
+    tmp, kept = cache.new_build_dir(root, module_name), None
+    try:
+        (tmp / sources.header_name).write_text(sources.header, encoding="utf-8")
+        (tmp / sources.source_name).write_text(sources.source, encoding="utf-8")
+        ffibuilder = cffi.FFI()
+        ffibuilder.cdef(sources.cdef)
+        ffibuilder.set_source(module_name, f'#include "{sources.header_name}"',
+                              sources=[str(tmp / sources.source_name)], include_dirs=[str(tmp)],
+                              extra_compile_args=list(flags))
+        with _compiler_env(compiler):
+            built = Path(ffibuilder.compile(tmpdir=str(tmp), verbose=False))
+        so_name = module_name + _EXT_SUFFIX
+        if built != tmp / so_name:
+            os.replace(built, tmp / so_name)
+        for item in tmp.iterdir():  # drop object files and distutils' build tree
+            if item.is_dir():
+                shutil.rmtree(item)
+            elif item.suffix in (".o", ".obj"):
+                item.unlink()
+        cache.write_marker(tmp, key, so_name)
+        cache.install_entry(tmp, entry)
+    except (cffi.CDefError, cffi.FFIError, cffi.VerificationError) as exc:
+        kept = cache.keep_failed(tmp, root, module_name)
+        raise _compile_error(sources, kept, module_name, flags, command, exc) from None
+    finally:
+        if kept is None and tmp.exists():
+            shutil.rmtree(tmp, ignore_errors=True)
+
+
+def _compile_error(sources, kept: Path, module_name, flags, command, exc) -> BuildError:
+    """Re-run the failing compile with captured output, so the message shows gcc's own errors."""
+    c_path = kept / sources.source_name
+    if isinstance(exc, (cffi.CDefError, cffi.FFIError)):
+        return BuildError(f"cdef of model {sources.layout.model!r} is invalid: {exc}\n"
+                          f"kept sources: {c_path}", c_path=c_path)
+    include = sysconfig.get_paths()["include"]
+    attempts = [[*command, *flags, "-I", str(kept), "-c", str(c_path), "-o", os.devnull],
+                [*command, *flags, "-fPIC", "-I", str(kept), "-I", include,
+                 "-c", str(kept / (module_name + ".c")), "-o", os.devnull]]
+    shown, stderr = "", str(exc)
+    for argv in attempts:
+        if not Path(argv[-3]).is_file():
+            continue
+        run = subprocess.run(argv, capture_output=True, text=True)
+        if run.returncode != 0:
+            shown, stderr = shlex.join(argv), (run.stderr or run.stdout)
+            break
+    hint = ("\nhint: install the Python development headers (e.g. apt-get install python3-dev)"
+            if "Python.h" in stderr else "")
+    return BuildError(f"C compilation of model {sources.layout.model!r} failed\n"
+                      f"command: {shown or 'cffi build_ext'}\n{stderr.rstrip()}\n"
+                      f"kept sources: {c_path}{hint}",
+                      command=shown, stderr=stderr, c_path=c_path)

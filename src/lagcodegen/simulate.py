@@ -1,0 +1,356 @@
+"""Stage: CompiledSystem -> Trajectory (the whole fixed-step loop runs in C).
+
+Also `solve_reference`: scipy's ``solve_ivp`` (DOP853, Radau, ...) on the same compiled
+right-hand side, for measuring the error of the fixed-step methods.
+"""
+from __future__ import annotations
+
+import enum
+import math
+import warnings
+from dataclasses import dataclass
+from functools import lru_cache
+from typing import Mapping
+
+import numpy as np
+
+from .build import CompiledSystem
+from .schemes import KIND_EXPLICIT, KIND_SYMPLECTIC_EULER, get_scheme, scheme_kind
+
+
+class Status(enum.IntEnum):
+    """Status codes of the generated C (``LCG_*`` in the header)."""
+
+    OK = 0
+    SINGULAR_MASS_MATRIX = 1
+    NONFINITE_STATE = 2
+    NEWTON_FAILED = 3
+    UNKNOWN_METHOD = 4
+
+    @property
+    def message(self) -> str:
+        return _MESSAGES[self]
+
+
+_MESSAGES = {
+    Status.OK: "ok",
+    Status.SINGULAR_MASS_MATRIX: "the mass matrix is singular or not positive definite",
+    Status.NONFINITE_STATE: "the state became NaN or infinite (the run diverged)",
+    Status.NEWTON_FAILED: "the implicit step's Newton iteration did not converge",
+    Status.UNKNOWN_METHOD: "the method is not compiled into this kernel",
+}
+
+
+class SimulationError(RuntimeError):
+    """A run stopped early; ``trajectory`` holds the samples up to the failure."""
+
+    def __init__(self, message: str, trajectory: "Trajectory"):
+        super().__init__(message)
+        self.trajectory = trajectory
+
+
+class StabilityWarning(UserWarning):
+    """The step lies outside the method's linear stability region at the initial state."""
+
+
+@dataclass(frozen=True)
+class Trajectory:
+    """Samples of one run.
+
+    Attributes
+    ----------
+    t : ndarray, (n_out,)
+    x : ndarray, (n_out, 2n); columns named by ``names`` (coordinates, then speeds)
+    names : tuple of str, (2n,)
+    energy : ndarray (n_out,) or None
+    points : ndarray (n_out, n_points, 3) or None; rows named by ``point_names``
+    point_names : tuple of str
+    status : Status
+    failed_step, failed_time : int or None, float or None
+        The step that failed (1-based) and the time it started from, when status is not OK.
+    method : str
+    h : float
+    """
+
+    t: np.ndarray
+    x: np.ndarray
+    names: tuple
+    energy: np.ndarray | None
+    points: np.ndarray | None
+    point_names: tuple
+    status: Status
+    failed_step: int | None
+    failed_time: float | None
+    method: str
+    h: float
+
+    @property
+    def ok(self) -> bool:
+        return self.status == Status.OK
+
+    @property
+    def message(self) -> str:
+        if self.ok:
+            return "ok"
+        return (f"{self.method} stopped at step {self.failed_step} (t = {self.failed_time:.6g}): "
+                f"{self.status.message}")
+
+    def check(self) -> "Trajectory":
+        """Return self, or raise `SimulationError` when the run stopped early."""
+        if not self.ok:
+            raise SimulationError(self.message, self)
+        return self
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        """The column of state variable ``name`` (e.g. ``traj["q1"]``), shape (n_out,)."""
+        try:
+            return self.x[:, self.names.index(name)]
+        except ValueError:
+            raise KeyError(f"no state variable {name!r}; names: {', '.join(self.names)}") from None
+
+
+def parameter_vector(system: CompiledSystem, params: Mapping | None = None) -> np.ndarray:
+    """Free-parameter values in ``p[]`` order: ``params`` by name, else the model's defaults."""
+    layout = system.layout
+    given = {(k.name if hasattr(k, "name") else str(k)): float(v) for k, v in (params or {}).items()}
+    fixed = {name for name, _ in layout.fixed}
+    for name in given:
+        if name in fixed:
+            raise ValueError(f"parameter {name!r} is fixed at build time; free parameters: "
+                             f"{', '.join(layout.parameters) or 'none'}")
+        if name not in layout.parameters:
+            raise ValueError(f"unknown parameter {name!r}; free parameters: {', '.join(layout.parameters) or 'none'}")
+    values = dict(layout.defaults) | given
+    missing = [name for name in layout.parameters if name not in values]
+    if missing:
+        raise ValueError(f"no value for parameter(s) {', '.join(missing)} of model {layout.model!r}")
+    p = np.array([values[name] for name in layout.parameters], dtype=_dtype(system))
+    bad = [name for name, v in zip(layout.parameters, p) if not np.isfinite(v)]
+    if bad:
+        raise ValueError(f"parameter(s) {', '.join(bad)} are not finite")
+    return p
+
+
+def initial_state(system: CompiledSystem, x0) -> np.ndarray:
+    """x0 as a C-contiguous array of 2n values; accepts a sequence or a mapping name -> value
+    (unnamed speeds default to 0, unnamed coordinates are an error)."""
+    layout = system.layout
+    names = layout.coordinates + layout.speeds
+    if isinstance(x0, Mapping):
+        unknown = [k for k in x0 if str(k) not in names]
+        if unknown:
+            raise ValueError(f"unknown state variable(s) {unknown}; state: {', '.join(names)}")
+        missing = [c for c in layout.coordinates if c not in {str(k) for k in x0}]
+        if missing:
+            raise ValueError(f"initial state lacks coordinate(s) {', '.join(missing)}")
+        x0 = [float(x0.get(name, 0.0)) for name in names]
+    x = np.ascontiguousarray(np.asarray(x0, dtype=_dtype(system)).ravel())
+    if x.shape != (len(names),):
+        raise ValueError(f"initial state needs {len(names)} values ({', '.join(names)}), got {x.size}")
+    if not np.all(np.isfinite(x)):
+        raise ValueError(f"initial state is not finite: {x}")
+    return x
+
+
+def _dtype(system: CompiledSystem):
+    return np.float32 if system.layout.precision == "float" else np.float64
+
+
+def _pointer(system: CompiledSystem, array: np.ndarray):
+    ctype = "float[]" if system.layout.precision == "float" else "double[]"
+    return system.ffi.from_buffer(ctype, array, require_writable=array.flags.writeable)
+
+
+def step_count(t0: float, t_end: float, h: float) -> int:
+    """Number of steps of size h from t0 to t_end; t_end - t0 must be a multiple of h."""
+    if not (h > 0 and math.isfinite(h)):
+        raise ValueError(f"step h must be positive and finite, got {h}")
+    span = t_end - t0
+    if not span > 0:
+        raise ValueError(f"t_end ({t_end}) must be greater than t0 ({t0})")
+    n = int(round(span / h))
+    if n < 1 or abs(n * h - span) > 1e-9 * max(1.0, abs(span)):
+        raise ValueError(f"t_end - t0 = {span} is not a whole number of steps h = {h}")
+    return n
+
+
+def simulate(system: CompiledSystem, x0, t_end: float, h: float, method: str = "rk4", *,
+             params: Mapping | None = None, t0: float = 0.0, stride: int = 1, energy: bool = False,
+             points: bool = False, check_stability: bool = True) -> Trajectory:
+    """Integrate with a fixed step, the whole loop in C.
+
+    Parameters
+    ----------
+    system : CompiledSystem
+        From `pipeline.compile_model` (or `build.build_module`), with ``method`` compiled in.
+    x0 : sequence (2n,) or mapping name -> value
+    t_end, h, t0 : float
+        ``t_end - t0`` must be a whole number of steps.
+    method : str
+        A name from ``system.layout.methods``.
+    params : mapping name -> float, optional
+        Free parameter values; the model's defaults fill the rest.
+    stride : int
+        Keep every stride-th sample: ``n_steps // stride + 1`` samples (memory bounded by that).
+    energy, points : bool
+        Also record T + V and the named point positions at each kept sample.
+    check_stability : bool
+        Warn (`StabilityWarning`) when h times an eigenvalue of the Jacobian at x0 lies outside
+        the method's linear stability region.
+
+    Returns
+    -------
+    Trajectory
+        ``status`` says whether the run completed; a failed run keeps the samples before the
+        failure and also emits a RuntimeWarning naming the reason, time and step.
+    """
+    layout = system.layout
+    method = str(method).lower()
+    if method not in layout.methods:
+        raise ValueError(f"method {method!r} is not compiled into {layout.model!r}; compiled: "
+                         f"{', '.join(layout.methods) or 'none'}")
+    if not isinstance(stride, int) or stride < 1:
+        raise ValueError(f"stride must be a positive integer, got {stride!r}")
+    x = initial_state(system, x0)
+    p = parameter_vector(system, params)
+    n_steps = step_count(t0, t_end, h)
+    if energy and f"{layout.prefix}_energy" not in layout.functions:
+        raise ValueError(f"model {layout.model!r} was compiled without the 'energy' output")
+    if points and not layout.points:
+        raise ValueError(f"model {layout.model!r} was compiled without named points")
+    if check_stability:
+        warn_if_unstable(system, x, p, h, method, t0, n_steps)
+    return _run(system, x, p, t0, h, n_steps, stride, method, energy, points)
+
+
+def _run(system, x, p, t0, h, n_steps, stride, method, energy, points) -> Trajectory:
+    layout, dtype = system.layout, _dtype(system)
+    n_out = n_steps // stride + 1
+    t_out = np.empty(n_out, dtype=dtype)
+    x_out = np.empty((n_out, 2 * layout.n), dtype=dtype)
+    e_out = np.empty(n_out, dtype=dtype) if energy else None
+    p_out = np.empty((n_out, len(layout.points), 3), dtype=dtype) if points else None
+    work = np.empty(_work_size(system), dtype=dtype)
+    steps_done = system.ffi.new("long *")
+    ptr = lambda a: system.ffi.NULL if a is None else _pointer(system, a)  # noqa: E731
+    simulate_c = getattr(system.lib, f"{layout.prefix}_simulate")
+    code = simulate_c(layout.methods.index(method), t0, _pointer(system, x), _pointer(system, p), h,
+                      n_steps, stride, ptr(t_out), ptr(x_out), ptr(e_out), ptr(p_out), ptr(work), steps_done)
+    status = Status(code)
+    kept = n_out if status == Status.OK else steps_done[0] // stride + 1
+    failed_step = None if status == Status.OK else steps_done[0] + 1
+    failed_time = None if status == Status.OK else t0 + steps_done[0] * h
+    trajectory = Trajectory(
+        t=t_out[:kept], x=x_out[:kept], names=layout.coordinates + layout.speeds,
+        energy=None if e_out is None else e_out[:kept], points=None if p_out is None else p_out[:kept],
+        point_names=layout.points, status=status, failed_step=failed_step, failed_time=failed_time,
+        method=method, h=h)
+    if not trajectory.ok:
+        warnings.warn(trajectory.message, RuntimeWarning, stacklevel=3)
+    return trajectory
+
+
+def _work_size(system: CompiledSystem) -> int:
+    return int(getattr(system.lib, f"{system.layout.prefix.upper()}_WORK_SIZE"))
+
+
+def jacobian(system: CompiledSystem, x, p, t: float = 0.0) -> np.ndarray:
+    """df/dx (2n, 2n) of the compiled first-order right-hand side (the analytic Jacobian)."""
+    layout = system.layout
+    name = f"{layout.prefix}_jacobian"
+    if name not in layout.functions:
+        raise ValueError(f"model {layout.model!r} was compiled without the 'jacobian' output")
+    size = 2 * layout.n
+    J = np.empty((size, size), dtype=_dtype(system))
+    x, p = np.ascontiguousarray(x, dtype=_dtype(system)), np.ascontiguousarray(p, dtype=_dtype(system))
+    code = getattr(system.lib, name)(t, _pointer(system, x), _pointer(system, p), _pointer(system, J))
+    if code != Status.OK:
+        raise ValueError(f"jacobian failed at x = {x}: {Status(code).message}")
+    return J
+
+
+def warn_if_unstable(system: CompiledSystem, x, p, h: float, method: str, t: float = 0.0,
+                     n_steps: int = 1) -> bool:
+    """Warn (and return True) when the step is outside the method's linear stability region.
+
+    The Jacobian's eigenvalues lambda at x are the local frequencies. Modes with Re(lambda) > 0
+    grow in the exact solution too and are ignored; for the others the amplification
+    |R(h lambda)| per step (R the method's stability function) must not exceed 1 by so much that
+    the run, n_steps long, amplifies them more than tenfold.
+    """
+    if f"{system.layout.prefix}_jacobian" not in system.layout.functions:
+        return False
+    scheme = get_scheme(method)
+    kind = scheme_kind(scheme)
+    if kind not in (KIND_EXPLICIT, KIND_SYMPLECTIC_EULER):
+        return False
+    eigenvalues = np.linalg.eigvals(jacobian(system, x, p, t).astype(np.float64))
+    settled = eigenvalues[eigenvalues.real <= 1e-9 * np.abs(eigenvalues)]
+    if settled.size == 0:
+        return False
+    w = float(np.max(np.abs(settled)))
+    if kind == KIND_SYMPLECTIC_EULER:
+        unstable = h * w >= scheme.imag_stability_limit()
+        limit = f"h*w < {scheme.imag_stability_limit():g}"
+    else:
+        growth = float(np.max(np.abs(_stability_function(method)(h * settled))))
+        unstable = growth > 1 + 1e-12 and n_steps * math.log(growth) > math.log(10.0)
+        limit = (f"h*w < {scheme.imag_stability_limit():.4g} on the imaginary axis, "
+                 f"{scheme.real_stability_limit():.4g} on the negative real axis")
+    if unstable:
+        warnings.warn(
+            f"step h = {h:g} with the largest frequency w = {w:.6g} rad/s of the Jacobian at the "
+            f"initial state gives h*w = {h * w:.4g}, outside {method}'s stability region ({limit}); "
+            f"the run will likely blow up: reduce h or use an implicit method", StabilityWarning, stacklevel=3)
+    return unstable
+
+
+@lru_cache(maxsize=None)
+def _stability_function(method: str):
+    import sympy as sp
+    from .tableaux import Z
+
+    return sp.lambdify(Z, get_scheme(method).stability_polynomial(), "numpy")
+
+
+def solve_reference(system: CompiledSystem, x0, t_eval, *, params: Mapping | None = None, t0: float = 0.0,
+                    method: str = "DOP853", rtol: float = 1e-12, atol: float = 1e-12):
+    """scipy ``solve_ivp`` on the compiled right-hand side; returns (t (k,), x (k, 2n)).
+
+    The reference for error measurements (DOP853 or Radau at rtol = atol = 1e-12).
+    """
+    from scipy.integrate import solve_ivp
+
+    layout = system.layout
+    if layout.precision != "double":
+        raise ValueError("reference solutions need a double-precision kernel")
+    rhs = make_rhs(system, params)
+    x = initial_state(system, x0)
+    t_eval = np.asarray(t_eval, dtype=float)
+    kwargs = {}
+    if method in ("Radau", "BDF", "LSODA") and f"{layout.prefix}_jacobian" in layout.functions:
+        p = parameter_vector(system, params)
+        kwargs["jac"] = lambda t, y: jacobian(system, y, p, t)
+    solution = solve_ivp(rhs, (t0, float(t_eval[-1])), x, method=method, t_eval=t_eval, rtol=rtol,
+                         atol=atol, **kwargs)
+    if not solution.success:
+        raise RuntimeError(f"reference solution ({method}) failed: {solution.message}")
+    return solution.t, solution.y.T
+
+
+def make_rhs(system: CompiledSystem, params: Mapping | None = None):
+    """``f(t, x) -> xdot`` (numpy) calling the compiled rhs; raises on a non-OK status."""
+    layout = system.layout
+    p = parameter_vector(system, params)
+    p_ptr = _pointer(system, p)
+    rhs_c = getattr(system.lib, f"{layout.prefix}_rhs")
+    dtype = _dtype(system)
+
+    def f(t, x):
+        x = np.ascontiguousarray(x, dtype=dtype)
+        out = np.empty_like(x)
+        code = rhs_c(t, _pointer(system, x), p_ptr, _pointer(system, out))
+        if code != Status.OK:
+            raise FloatingPointError(f"rhs failed at t = {t}: {Status(code).message}")
+        return out
+    return f
