@@ -210,6 +210,18 @@ def double_pendulum(route: str = "bodies") -> Model:
     return pendulum_chain(2, route=route, name="double_pendulum")
 
 
+def stiff_chain() -> Model:
+    """Three masses on a line between two walls joined by springs k (wall-m1, m1-m2, m3-wall) and
+    one stiff spring K (m2-m3); x_i are displacements from rest. Linear, undamped: its largest
+    frequency is the square root of the largest eigenvalue of M^-1 K_stiffness."""
+    m1, m2, m3, k, K = sp.symbols("m1 m2 m3 k K", positive=True)
+    x = me.dynamicsymbols("x1:4")
+    T = sum(m * xi.diff() ** 2 for m, xi in zip((m1, m2, m3), x)) / 2
+    V = (k * x[0] ** 2 + k * (x[1] - x[0]) ** 2 + K * (x[2] - x[1]) ** 2 + k * x[2] ** 2) / 2
+    return Model("stiff_chain", x, (m1, m2, m3, k, K), kinetic_energy=T, potential_energy=V,
+                 parameter_values={m1: 1.0, m2: 1.0, m3: 1.0, k: 1.0, K: 1.0e4})
+
+
 EXAMPLES = {
     "rolling_wheels": rolling_wheels,
     "elastic_pendulum": elastic_pendulum,
@@ -219,6 +231,7 @@ EXAMPLES = {
     "gear_hoist": gear_hoist,
     "double_pendulum": double_pendulum,
     "pendulum_chain_5": lambda: pendulum_chain(5),
+    "stiff_chain": stiff_chain,
 }
 
 
