@@ -64,17 +64,21 @@ class CompiledSystem:
     path: Path
     module_name: str
     layout: KernelLayout
+    sources: CSources | None = field(default=None, repr=False, compare=False)
 
     def __reduce__(self):
-        return (_restore, (self.key, str(self.path), self.module_name, self.layout))
+        return (_restore, (self.key, str(self.path), self.module_name, self.layout, self.sources))
 
 
-def _restore(key: str, path: str, module_name: str, layout: KernelLayout) -> CompiledSystem:
+def _restore(key: str, path: str, module_name: str, layout: KernelLayout,
+             sources: CSources | None = None) -> CompiledSystem:
     if not Path(path).is_file():
+        if sources is not None:  # another machine (a Dask worker): build or load from its own cache
+            return build_module(sources)
         raise BuildError(f"compiled module {path} of model {layout.model!r} no longer exists; "
                          "call build_module again")
     module = _import(path, module_name)
-    return CompiledSystem(module.ffi, module.lib, key, Path(path), module_name, layout)
+    return CompiledSystem(module.ffi, module.lib, key, Path(path), module_name, layout, sources)
 
 
 @functools.lru_cache(maxsize=None)
@@ -182,7 +186,7 @@ def build_module(sources: CSources, *, cache_dir=None, extra_compile_args=(), co
         if (str(root), key) not in _MEMO:
             _MEMO[str(root), key] = _fetch(sources, root, key, module_name, flags, command, compiler)
         ffi, lib, so_path = _MEMO[str(root), key]
-    return CompiledSystem(ffi, lib, key, so_path, module_name, sources.layout)
+    return CompiledSystem(ffi, lib, key, so_path, module_name, sources.layout, sources)
 
 
 def _fetch(sources, root: Path, key: str, module_name: str, flags, command, compiler):

@@ -484,6 +484,12 @@ def _stepper_context(system: ReducedSystem, names: _Names, real: str, methods: l
             f"{real} *points_out, {real} *work, long *steps_done)")
     context["simulate_decl"] = decl
     context["exported"].append(_record(decl, "Fixed-step integration loop; returns a status code.", []))
+    sweep = (f"void {prefix}_sweep(int method, long n_members, const {real} *x0s, const {real} *ps, {real} t0, "
+             f"{real} h, long n_steps, long stride, int track_energy, {real} *x_final, {real} *q_max, "
+             f"{real} *energy_error, int *status, long *steps_done, {real} *traj, {real} *work)")
+    context["sweep_decl"] = sweep
+    context["n_params_or_one"] = max(1, len(system.free_parameters))
+    context["exported"].append(_record(sweep, "Many independent members, one after another.", []))
     return context
 
 
