@@ -74,6 +74,7 @@ import jinja2  # noqa: E402
 import sympy as sp  # noqa: E402
 
 from .cse import ReducedKernel, ReducedSystem  # noqa: E402
+from .model import TIME  # noqa: E402
 from .printer import CPrinter, mangle  # noqa: E402
 
 PRECISIONS = ("double", "float")
@@ -104,6 +105,12 @@ def template_dir() -> Path:
     return Path(__file__).resolve().parents[2] / "templates"
 
 
+def comment_text(text: str) -> str:
+    """``text`` made safe inside a C block comment: no ``*/``, no ``/*``, one line."""
+    return (str(text).replace("*/", "*\\/").replace("/*", "/\\*")
+            .replace("\\n", "\\\\n").replace("\n", "\\n").replace("\r", "\\r"))
+
+
 def _environment() -> jinja2.Environment:
     return jinja2.Environment(
         loader=jinja2.FileSystemLoader(str(template_dir())), undefined=jinja2.StrictUndefined,
@@ -121,8 +128,18 @@ class _Names:
     accel_index: dict  # Symbol -> index into ud (jacobian kernel only)
 
 
+def _solver_locals(n: int) -> set:
+    """Locals of the unrolled LDL^T code (M_j_k, F_j, D_j, ...): user names must avoid them."""
+    names = set()
+    for j in range(n):
+        names |= {f"F_{j}", f"D_{j}", f"Dinv_{j}", f"y_{j}", f"w_{j}"}
+        for k in range(n):
+            names |= {f"M_{j}_{k}", f"L_{j}_{k}", f"LD_{j}_{k}"}
+    return names
+
+
 def _names(system: ReducedSystem, model_name: str) -> _Names:
-    taken = set(_RESERVED)
+    taken = set(_RESERVED) | _solver_locals(len(system.q))
     temporaries = [s for k in system.kernels for s, _ in k.temporaries]
     symbols = {}
     for s in dict.fromkeys(temporaries):  # cse names first: tmp0, tmp1, ...
@@ -208,7 +225,7 @@ def _input_lines(kernel: ReducedKernel, names: _Names, real: str) -> tuple[list,
         unused.append("x")
     if not any(s in used for s in names.param_index):
         unused.append("p")
-    if not any(s.name == "t" for s in used):
+    if TIME not in used:
         unused.append("t")
     return lines, unused
 
@@ -271,7 +288,8 @@ def _function_record(system, kernel, names, printer, real, output):
         body = _body_head(kernel, names, printer, real) + ["/* Point positions (x, y, z) */"]
         for (i, c), expr in _results(kernel, "P").items():
             point = system.point_names[i]
-            body.append(f"out[{3 * i + c}] = {_print(printer, expr, f'point {point}')};  /* {point}.{'xyz'[c]} */")
+            body.append(f"out[{3 * i + c}] = {_print(printer, expr, f'point {point}')};  "
+                        f"/* {comment_text(point)}.{'xyz'[c]} */")
         return _record(f"void {prefix}_points({args}, {real} *out)",
                        f"Positions of {len(system.point_names)} named points, 3 values each.", body)
     if output == "jacobian":
@@ -302,15 +320,15 @@ def _dynamics_record(system, names, printer, real) -> dict:
     else:
         body += [f"qd[{j}] = {_print(printer, expr, f'qd[{j}]')};"
                  for (j, _), expr in _results(kernel, "K").items()]
-    body += ldlt_solve_lines(n, {jk for jk, e in M.items() if e != 0}, real)
+    body += ldlt_solve_lines(n, {jk for jk, e in M.items() if e != 0}, real, f"{prefix}_pivot_failure(x)")
     body.append("return LCG_OK;")
     return _record(f"int {prefix}_dynamics({real} t, const {real} *x, const {real} *p, {real} *qd, {real} *ud)",
                    "K, M and F with shared temporaries, then M ud = F by LDL^T.", body, static=True)
 
 
-def ldlt_solve_lines(n: int, nonzero: set, real: str) -> list:
+def ldlt_solve_lines(n: int, nonzero: set, real: str, failure: str = "LCG_SINGULAR_MASS_MATRIX") -> list:
     """Unrolled LDL^T factorization of M (locals M_j_k) and solve of M ud = F (locals F_j)."""
-    factor, LD = ldlt_factor_lines(n, nonzero, real)
+    factor, LD = ldlt_factor_lines(n, nonzero, real, failure)
     return factor + ldlt_substitution_lines(n, LD, real, lambda i: f"F_{i}", lambda i: f"ud[{i}]")
 
 
@@ -318,7 +336,7 @@ def _minus_terms(pairs) -> str:
     return "".join(f" - {a}*{b}" for a, b in pairs)
 
 
-def ldlt_factor_lines(n: int, nonzero: set, real: str) -> tuple[list, set]:
+def ldlt_factor_lines(n: int, nonzero: set, real: str, failure: str = "LCG_SINGULAR_MASS_MATRIX") -> tuple[list, set]:
     """Unrolled LDL^T factorization of the symmetric M held in locals M_j_k (j >= k).
 
     Structural zeros of M are skipped. A pivot that is not positive (or NaN) returns
@@ -331,7 +349,7 @@ def ldlt_factor_lines(n: int, nonzero: set, real: str) -> tuple[list, set]:
     for j in range(n):
         pivot = _minus_terms((f"L_{j}_{k}", f"LD_{j}_{k}") for k in range(j) if (j, k) in LD)
         lines.append(f"const {real} D_{j} = M_{j}_{j}{pivot};")
-        lines.append(f"if (!(D_{j} > {zero})) return LCG_SINGULAR_MASS_MATRIX;")
+        lines.append(f"if (!(D_{j} > {zero})) return {failure};")
         lines.append(f"const {real} Dinv_{j} = {one} / D_{j};")
         for i in range(j + 1, n):
             pairs = [(f"LD_{i}_{k}", f"L_{j}_{k}") for k in range(j) if (i, k) in LD and (j, k) in LD]
@@ -383,7 +401,7 @@ def _jacobian_record(system, kernel, names, printer, real) -> dict:
             else:
                 value = _literal(1 if c == n + j else 0, real)
             body.append(f"J[{j * size + c}] = {value};")
-    factor, LD = ldlt_factor_lines(n, {jk for jk, e in M.items() if e != 0}, real)
+    factor, LD = ldlt_factor_lines(n, {jk for jk, e in M.items() if e != 0}, real, f"{prefix}_pivot_failure(x)")
     body += factor
     body.append(f"for (c = 0; c < {size}; ++c) {{")
     solve = ldlt_substitution_lines(n, LD, real, lambda i: f"B[{i}][c]",
@@ -412,17 +430,17 @@ def _context(system: ReducedSystem, names: _Names, layout: KernelLayout, functio
     from . import __version__
 
     n = len(system.q)
-    state_rows = [{"index": i, "name": s.name, "c_name": names.symbols[s],
+    state_rows = [{"index": i, "name": comment_text(s.name), "c_name": names.symbols[s],
                    "kind": "coordinate" if i < n else "speed"}
                   for i, s in enumerate(system.q + system.u)]
-    param_rows = [{"index": i, "name": s.name, "c_name": names.symbols[s]}
+    param_rows = [{"index": i, "name": comment_text(s.name), "c_name": names.symbols[s]}
                   for i, s in enumerate(system.free_parameters)]
-    fixed_rows = [{"name": s.name, "value": repr(v)} for s, v in system.fixed_parameters]
-    point_rows = [{"index": 3 * i, "name": name} for i, name in enumerate(system.point_names)]
+    fixed_rows = [{"name": comment_text(s.name), "value": repr(v)} for s, v in system.fixed_parameters]
+    point_rows = [{"index": 3 * i, "name": comment_text(name)} for i, name in enumerate(system.point_names)]
     key_text = repr((layout, [(f["decl"], f["body"]) for f in functions]))
     upper = names.prefix.upper()
     return {
-        "version": __version__, "sympy_version": sp.__version__, "model": layout.model,
+        "version": __version__, "sympy_version": sp.__version__, "model": comment_text(layout.model),
         "route": system.route, "key": hashlib.sha256(key_text.encode()).hexdigest()[:16],
         "prefix": names.prefix, "guard": f"{upper}_H", "macro": upper, "real": real,
         "n": n, "n_state": 2 * n, "n_params": len(param_rows), "n_points": len(point_rows),
@@ -430,6 +448,7 @@ def _context(system: ReducedSystem, names: _Names, layout: KernelLayout, functio
         "point_rows": point_rows, "has_fixed": bool(fixed_rows),
         "status_codes": [{"name": c, "value": v, "doc": d} for c, v, d in STATUS_CODES],
         "prototypes": [f for f in functions if not f["static"]], "functions": functions,
+        "has_dynamics": any(f["decl"].startswith(f"static int {names.prefix}_dynamics(") for f in functions),
     }
 
 

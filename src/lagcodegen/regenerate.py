@@ -15,7 +15,7 @@ import sympy as sp
 from .catalog import EXAMPLES
 from .cse import reduce_expressions
 from .derive import EquationsOfMotion, derive_equations
-from .emit import _environment, render_sources
+from .emit import _environment, comment_text, render_sources
 
 #: time of the C tests' sample state (rheonomic models depend on it)
 SAMPLE_TIME = 0.25
@@ -72,7 +72,7 @@ def _c_test(sources, sample: SampleState, precision: str) -> str:
     layout = sources.layout
     literal = (lambda v: f"{float(v)!r}F") if precision == "float" else (lambda v: f"{float(v)!r}")
     context = {
-        "version": _version(), "sympy_version": sp.__version__, "model": layout.model,
+        "version": _version(), "sympy_version": sp.__version__, "model": comment_text(layout.model),
         "key": sources.source.split("source key: ")[1].split(".")[0], "prefix": layout.prefix,
         "header_name": sources.header_name, "real": precision, "n": layout.n,
         "n_state": 2 * layout.n, "n_matrix": layout.n * layout.n, "p_size": max(1, len(sample.p)),

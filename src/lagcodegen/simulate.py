@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import enum
 import math
+import operator
 import warnings
 from dataclasses import dataclass
 from functools import lru_cache
@@ -147,8 +148,9 @@ def initial_state(system: CompiledSystem, x0) -> np.ndarray:
     x = np.ascontiguousarray(np.asarray(x0, dtype=_dtype(system)).ravel())
     if x.shape != (len(names),):
         raise ValueError(f"initial state needs {len(names)} values ({', '.join(names)}), got {x.size}")
-    if not np.all(np.isfinite(x)):
-        raise ValueError(f"initial state is not finite: {x}")
+    bad = [name for name, value in zip(names, x) if not np.isfinite(value)]
+    if bad:
+        raise ValueError(f"initial state is not finite in {', '.join(bad)}: {x}")
     return x
 
 
@@ -159,6 +161,19 @@ def _dtype(system: CompiledSystem):
 def _pointer(system: CompiledSystem, array: np.ndarray):
     ctype = "float[]" if system.layout.precision == "float" else "double[]"
     return system.ffi.from_buffer(ctype, array, require_writable=array.flags.writeable)
+
+
+def positive_int(value, what: str) -> int:
+    """``value`` as a positive int (numpy integers welcome, bools and floats not)."""
+    if isinstance(value, bool):
+        raise ValueError(f"{what} must be a positive integer, got {value!r}")
+    try:
+        number = operator.index(value)
+    except TypeError:
+        raise ValueError(f"{what} must be a positive integer, got {value!r}") from None
+    if number < 1:
+        raise ValueError(f"{what} must be a positive integer, got {value!r}")
+    return number
 
 
 def step_count(t0: float, t_end: float, h: float) -> int:
@@ -209,8 +224,7 @@ def simulate(system: CompiledSystem, x0, t_end: float, h: float, method: str = "
     if method not in layout.methods:
         raise ValueError(f"method {method!r} is not compiled into {layout.model!r}; compiled: "
                          f"{', '.join(layout.methods) or 'none'}")
-    if not isinstance(stride, int) or stride < 1:
-        raise ValueError(f"stride must be a positive integer, got {stride!r}")
+    stride = positive_int(stride, "stride")
     x = initial_state(system, x0)
     p = parameter_vector(system, params)
     n_steps = step_count(t0, t_end, h)
@@ -284,7 +298,11 @@ def warn_if_unstable(system: CompiledSystem, x, p, h: float, method: str, t: flo
     kind = scheme_kind(scheme)
     if kind not in (KIND_EXPLICIT, KIND_SYMPLECTIC_EULER):
         return False
-    eigenvalues = np.linalg.eigvals(jacobian(system, x, p, t).astype(np.float64))
+    try:
+        J = jacobian(system, x, p, t)
+    except ValueError:  # e.g. a singular mass matrix at x: the run itself reports it
+        return False
+    eigenvalues = np.linalg.eigvals(J.astype(np.float64))
     settled = eigenvalues[eigenvalues.real <= 1e-9 * np.abs(eigenvalues)]
     if settled.size == 0:
         return False

@@ -22,7 +22,8 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from .build import CompiledSystem
-from .simulate import Status, _dtype, _pointer, _work_size, initial_state, parameter_vector, step_count
+from .simulate import (Status, _dtype, _pointer, _work_size, initial_state, parameter_vector, positive_int,
+                       step_count)
 
 #: status of members a sweep did not reach (interrupted)
 NOT_RUN = -1
@@ -182,8 +183,7 @@ def sweep(system: CompiledSystem, grid: Mapping | None = None, *, members: Mappi
     method = str(method).lower()
     if method not in layout.methods:
         raise ValueError(f"method {method!r} is not compiled into {layout.model!r}; compiled: {', '.join(layout.methods)}")
-    if not isinstance(stride, int) or stride < 1:
-        raise ValueError(f"stride must be a positive integer, got {stride!r}")
+    stride = positive_int(stride, "stride")
     n_steps = step_count(t0, t_end, h)
     track_energy = track_energy and f"{layout.prefix}_energy" in layout.functions
     xs, ps = member_arrays(system, columns, values, x0, params)

@@ -1,0 +1,125 @@
+"""Shared fixtures: the ``--update-golden`` option, the repository root, fixed seeds, tool
+checks and the catalog examples compiled once per session.
+
+- ``require_tool(name)`` skips a test when an external program (cmake, arm-none-eabi-gcc, ...)
+  is missing, but FAILS it when the environment variable ``CI`` is set: on CI a missing
+  toolchain is a broken image, not a reason to go green.
+- ``compiled_example(name, precision="double", ...)`` compiles a catalog example through
+  ``lagcodegen.pipeline.compile_model`` once per session (cached by name, precision, outputs,
+  fixed parameters and methods) into an isolated cache dir under ``tmp_path_factory``,
+  exported as ``LAGCODEGEN_CACHE_DIR`` for the session and restored afterwards.
+"""
+from __future__ import annotations
+
+import os
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+#: every random number in the tests derives from this seed
+SEED = 20240611
+REPO_ROOT = Path(__file__).resolve().parents[1]
+#: every output the pipeline can generate (kernel tests compare all of them)
+ALL_OUTPUTS = ("mass_matrix", "forcing", "accel", "rhs", "energy", "points", "jacobian")
+
+
+def pytest_addoption(parser):
+    parser.addoption("--update-golden", action="store_true", default=False,
+                     help="rewrite generated/ (lagcodegen.regenerate.write_generated) instead of "
+                          "failing when the regenerated C differs from it")
+
+
+@pytest.fixture(scope="session")
+def update_golden(request) -> bool:
+    """True when pytest runs with ``--update-golden``."""
+    return bool(request.config.getoption("--update-golden"))
+
+
+@pytest.fixture(scope="session")
+def repo_root() -> Path:
+    """The lagcodegen checkout (holds ``generated/``, ``CMakeLists.txt``, ``templates/``)."""
+    return REPO_ROOT
+
+
+@pytest.fixture
+def rng() -> np.random.Generator:
+    """A fresh generator with the fixed seed: every test sees the same numbers."""
+    return np.random.default_rng(SEED)
+
+
+def require_tool(name: str) -> str:
+    """Full path of the program ``name``; skip if missing, or fail when ``$CI`` is set."""
+    path = shutil.which(name)
+    if path is None:
+        message = f"required tool {name!r} not found on PATH"
+        if os.environ.get("CI", "").strip().lower() not in ("", "0", "false", "no"):
+            pytest.fail(f"{message} (CI is set: a missing tool is an error, not a skip)")
+        pytest.skip(message)
+    return path
+
+
+@pytest.fixture(name="require_tool", scope="session")
+def _require_tool_fixture():
+    """``require_tool`` as a fixture, for test modules (conftest is not importable by name)."""
+    return require_tool
+
+
+@pytest.fixture(scope="session")
+def kernel_cache_dir(tmp_path_factory):
+    """A private lagcodegen cache dir, exported as ``LAGCODEGEN_CACHE_DIR`` for the session.
+
+    Session scope cannot use ``monkeypatch``, so the old value is saved and restored by hand.
+    """
+    path = tmp_path_factory.mktemp("lagcodegen_cache")
+    saved = os.environ.get("LAGCODEGEN_CACHE_DIR")
+    os.environ["LAGCODEGEN_CACHE_DIR"] = str(path)
+    try:
+        yield path
+    finally:
+        if saved is None:
+            os.environ.pop("LAGCODEGEN_CACHE_DIR", None)
+        else:
+            os.environ["LAGCODEGEN_CACHE_DIR"] = saved
+
+
+@pytest.fixture(scope="session")
+def example_eom():
+    """``example_eom(name)``: derived equations of a catalog example, derived once per session."""
+    from lagcodegen import catalog, derive_equations
+
+    memo: dict = {}
+
+    def get(name: str):
+        if name not in memo:
+            memo[name] = derive_equations(catalog.example(name))
+        return memo[name]
+
+    return get
+
+
+@pytest.fixture(scope="session")
+def compiled_example(kernel_cache_dir, example_eom):
+    """``compiled_example(name, precision="double", outputs=None, fixed=None, methods=())``.
+
+    Compiles a catalog example once per session through ``compile_model``. ``outputs=None``
+    means every output the model has (``ALL_OUTPUTS`` minus energy when it has no energies);
+    ``methods=()`` compiles no integrators, which keeps the build fast for kernel tests.
+    """
+    from lagcodegen.pipeline import compile_model
+
+    memo: dict = {}
+
+    def get(name: str, precision: str = "double", outputs=None, fixed=None, methods=()):
+        eom = example_eom(name)
+        if outputs is None:
+            outputs = tuple(o for o in ALL_OUTPUTS if not (o == "energy" and eom.energy is None))
+        fixed_key = tuple(sorted((str(k), float(v)) for k, v in (fixed or {}).items()))
+        key = (name, precision, tuple(outputs), fixed_key, tuple(methods))
+        if key not in memo:
+            memo[key] = compile_model(eom, outputs=outputs, fixed=fixed, methods=tuple(methods),
+                                      precision=precision)
+        return memo[key]
+
+    return get

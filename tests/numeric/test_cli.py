@@ -1,0 +1,210 @@
+"""``lagcodegen simulate`` and ``lagcodegen sweep``: files written, values, and errors.
+
+The commands run in-process through ``lagcodegen.cli.main`` on tiny problems (the kernels
+build into the session's private cache). Independent sources for the numbers:
+
+- final states: scipy's DOP853 at rtol = atol = 1e-12 on the same model (`solve_reference`);
+  rk4 with h = 1e-3 over 0.5 s is within ~1e-12 of it, 1e-8 is the margin;
+- grid order and axes: ``numpy.linspace`` / ``numpy.geomspace`` and the C order of
+  ``itertools.product`` (first --grid slowest), as the help text promises;
+- blow-ups: rk4's real stability limit h*omega = 2.785 (Hairer & Wanner, Solving ODEs II,
+  Sec. IV.2, Fig. 2.1): the stiff chain's fast mode, omega = sqrt(K (1/m2 + 1/m3)) = sqrt(2 K),
+  is unstable at h = 1e-3 for K = 1e8 (h omega = 14) and stable for K = 100 (0.014).
+"""
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+
+from lagcodegen import catalog
+from lagcodegen.cli import main, parse_axis
+from lagcodegen.pipeline import compile_model
+from lagcodegen.simulate import Status, solve_reference
+
+pytestmark = pytest.mark.compiler
+
+PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+DP_RUN = ["--t-end", "0.5", "--h", "1e-3"]
+
+
+def run_cli(argv, capsys) -> tuple[int, str]:
+    code = main([str(a) for a in argv])
+    return code, capsys.readouterr().out
+
+
+def cli_error(argv, capsys) -> str:
+    """The message of the SystemExit a bad command line raises."""
+    with pytest.raises(SystemExit) as info:
+        main([str(a) for a in argv])
+    return str(info.value.code)
+
+
+@pytest.fixture(autouse=True)
+def _private_cache(kernel_cache_dir):
+    """Every command here builds into the session's private cache, never the user's."""
+    return kernel_cache_dir
+
+
+@pytest.fixture(scope="module")
+def reference_pendulum(kernel_cache_dir):
+    """The double pendulum for scipy's reference solutions (its own compile, rhs only)."""
+    return compile_model(catalog.double_pendulum(), outputs=("rhs",), methods=())
+
+
+def assert_png(path):
+    assert path.is_file(), f"{path} was not written"
+    assert path.read_bytes()[:8] == PNG_MAGIC
+
+
+# -- grid syntax ------------------------------------------------------------------------------
+@pytest.mark.parametrize("item, name, expected", [
+    ("k=10:1000:5", "k", np.linspace(10, 1000, 5)),
+    ("k=10:1000:5:log", "k", np.geomspace(10, 1000, 5)),
+    ("m2=0.5,1,2", "m2", np.array([0.5, 1.0, 2.0])),
+    ("q1=-1:1:1", "q1", np.array([-1.0])),
+])
+def test_parse_axis(item, name, expected):
+    got_name, values = parse_axis(item)
+    assert got_name == name
+    np.testing.assert_allclose(values, expected, rtol=1e-15)
+
+
+@pytest.mark.parametrize("item, culprit", [
+    ("k", "k"), ("k=", "k="), ("=1,2", "=1,2"), ("k=1:2", "1:2"), ("k=1:2:x", "1:2:x"),
+    ("k=1:2:3:4", "1:2:3:4"), ("k=1:2:0", "count"), ("k=0:2:5:log", "positive"), ("k=a,b", "a,b"),
+])
+def test_bad_grid_syntax_names_the_item(item, culprit, capsys):
+    message = cli_error(["sweep", "double_pendulum", "--grid", item, *DP_RUN, "--x0", "q1=1,q2=0"], capsys)
+    assert culprit in message and "--grid" in message
+
+
+@pytest.mark.parametrize("argv, words", [
+    (["--grid", "kk=1,2"], ["unknown name 'kk'", "m2"]),                       # lists the free ones
+    (["--grid", "m2=1,2", "--fixed", "m2=1"], ["'m2'", "fixed"]),
+    (["--grid", "m2=1,2", "--grid", "m2=3"], ["'m2'", "twice"]),
+    (["--grid", "m2=,"], ["'m2'", "no values"]),
+    ([], ["--grid", "--table"]),
+    (["--grid", "m2=1,2", "--param", "zz=1"], ["unknown name 'zz'", "--param"]),
+    (["--grid", "m2=1,2", "--field", "q_max:r"], ["--field", "q1, q2"]),
+    (["--grid", "m2=1,2", "--heatmap", "x.png"], ["--heatmap", "two"]),
+])
+def test_bad_sweep_arguments_name_the_culprit(argv, words, capsys):
+    message = cli_error(["sweep", "double_pendulum", *DP_RUN, "--x0", "q1=1,q2=0", *argv], capsys)
+    for word in words:
+        assert word in message, message
+
+
+def test_missing_coordinate_and_step_mismatch_fail_before_compiling(capsys):
+    assert "q2" in cli_error(["simulate", "double_pendulum", *DP_RUN, "--x0", "q1=1"], capsys)
+    assert "whole number of steps" in cli_error(
+        ["simulate", "double_pendulum", "--t-end", "1", "--h", "0.3", "--x0", "q1=1,q2=0"], capsys)
+
+
+def test_help_documents_grid_syntax_and_examples(capsys):
+    with pytest.raises(SystemExit) as info:
+        main(["sweep", "--help"])
+    assert info.value.code == 0
+    text = capsys.readouterr().out
+    for word in ("--grid", "start:stop:count:log", "name=v1,v2,v3", "--scheduler", "--table", "--field",
+                 "--trajectories", "examples:", "lagcodegen sweep "):
+        assert word in text, word
+    with pytest.raises(SystemExit):
+        main(["simulate", "--help"])
+    assert "--energy" in capsys.readouterr().out
+
+
+# -- simulate ---------------------------------------------------------------------------------
+def test_simulate_writes_npz_and_png(tmp_path, capsys, reference_pendulum):
+    out, plot = tmp_path / "run.npz", tmp_path / "run.png"
+    code, text = run_cli(["simulate", "double_pendulum", *DP_RUN, "--x0", "q1=1,q2=0.5", "--param", "m2=0.5",
+                          "--stride", "10", "--energy", "--out", out, "--plot", plot], capsys)
+    assert code == 0
+    assert "ok" in text and "max |E - E0|" in text and "wall time" in text
+    data = np.load(out)
+    assert list(data["names"]) == ["q1", "q2", "q1_d", "q2_d"]
+    assert data["t"].shape == (51,) and data["x"].shape == (51, 4) and data["energy"].shape == (51,)
+    assert int(data["status"]) == Status.OK and str(data["status_name"]) == "OK"
+    assert dict(zip(data["parameters"], data["p"]))["m2"] == 0.5
+    _, want = solve_reference(reference_pendulum, [1.0, 0.5, 0.0, 0.0], [0.0, 0.5], params={"m2": 0.5})
+    np.testing.assert_allclose(data["x"][-1], want[-1], rtol=0, atol=1e-8)
+    assert np.max(np.abs(data["energy"] - data["energy"][0])) < 1e-8  # rk4, h = 1e-3: ~1e-12
+    assert_png(plot)
+
+
+def test_simulate_failed_run_exits_1_and_keeps_samples(tmp_path, capsys):
+    out = tmp_path / "stiff.npz"
+    with pytest.warns(Warning):  # StabilityWarning at x0, RuntimeWarning at the failure
+        code, text = run_cli(["simulate", "stiff_chain", "--t-end", "1", "--h", "1e-3", "--param", "K=1e8",
+                              "--x0", "x1=0.1,x2=0,x3=0", "--out", out], capsys)
+    assert code == 1 and "NaN or infinite" in text
+    data = np.load(out)
+    assert int(data["status"]) == Status.NONFINITE_STATE
+    assert 1 < len(data["t"]) < 1001 and np.all(np.isfinite(data["x"]))
+
+
+# -- sweep ------------------------------------------------------------------------------------
+def test_sweep_grid_writes_every_array_and_heatmap(tmp_path, capsys, reference_pendulum):
+    out, png = tmp_path / "sweep.npz", tmp_path / "sweep.png"
+    code, text = run_cli(["sweep", "double_pendulum", "--grid", "m2=0.5,1", "--grid", "q1=0.1:0.3:3", *DP_RUN,
+                          "--x0", "q2=0.2", "--threads", "2", "--trajectories", "--stride", "10",
+                          "--out", out, "--heatmap", png, "--field", "q_max:q2"], capsys)
+    assert code == 0 and "6 members" in text and "status: ok 6" in text
+    data = np.load(out)
+    assert list(data["columns"]) == ["m2", "q1"] and bool(data["is_grid"]) and bool(data["completed"])
+    np.testing.assert_array_equal(data["grid_q1"], np.linspace(0.1, 0.3, 3))
+    np.testing.assert_array_equal(data["values"], list(itertools.product([0.5, 1.0], np.linspace(0.1, 0.3, 3))))
+    shapes = {"x_final": (6, 4), "q_max": (6, 2), "energy_error": (6,), "status": (6,), "steps_done": (6,),
+              "blowup_time": (6,), "t": (51,), "trajectories": (6, 51, 4)}
+    assert {name: data[name].shape for name in shapes} == shapes
+    assert list(data["state_names"]) == ["q1", "q2", "q1_d", "q2_d"]
+    member = 4  # m2 = 1, q1 = 0.2 in C order
+    _, want = solve_reference(reference_pendulum, [0.2, 0.2, 0.0, 0.0], [0.0, 0.5], params={"m2": 1.0})
+    np.testing.assert_allclose(data["x_final"][member], want[-1], rtol=0, atol=1e-8)
+    np.testing.assert_allclose(data["trajectories"][member, -1], want[-1], rtol=0, atol=1e-8)
+    assert_png(png)
+
+
+def test_sweep_table_and_failures(tmp_path, capsys):
+    table = tmp_path / "members.csv"
+    table.write_text("k,K\n1,100\n2,100\n1,1e8\n2,1e8\n")
+    out, png = tmp_path / "stiff.npz", tmp_path / "status.png"
+    code, text = run_cli(["sweep", "stiff_chain", "--table", table, "--t-end", "1", "--h", "1e-3",
+                          "--x0", "x1=0.1,x2=0,x3=0", "--field", "blowup_time", "--out", out, "--heatmap", png],
+                         capsys)
+    assert code == 0 and "nonfinite_state 2" in text
+    data = np.load(out)
+    assert not bool(data["is_grid"]) and "grid_k" not in data.files
+    np.testing.assert_array_equal(data["values"], [[1, 100], [2, 100], [1, 1e8], [2, 1e8]])
+    np.testing.assert_array_equal(data["status"], [Status.OK, Status.OK, Status.NONFINITE_STATE,
+                                                   Status.NONFINITE_STATE])
+    assert np.all(np.isnan(data["blowup_time"][:2])) and np.all(data["blowup_time"][2:] < 1.0)
+    assert_png(png)
+
+
+def test_sweep_state_variable_needs_no_x0_entry(tmp_path, capsys):
+    out = tmp_path / "q.npz"
+    code, _ = run_cli(["sweep", "double_pendulum", "--grid", "q1=0,0.5", *DP_RUN, "--x0", "q2=0",
+                       "--out", out], capsys)
+    assert code == 0
+    data = np.load(out)
+    assert data["q_max"][0, 0] == 0.0  # the pendulum at rest stays at rest
+    # energy: released at rest from (q1, q2) = (0.5, 0), V <= V(0) needs cos q2 >= 1 + 2 (cos 0.5 -
+    # cos q1), so |q1| <= 0.5 throughout, the max attained at t = 0 (rk4's energy error ~1e-12)
+    assert data["q_max"][1, 0] == pytest.approx(0.5, abs=1e-8)
+
+
+def test_sweep_on_a_dask_scheduler(tmp_path, capsys):
+    distributed = pytest.importorskip("dask.distributed")
+    out = tmp_path / "dask.npz"
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False,
+                                  dashboard_address=None) as cluster:
+        code, _ = run_cli(["sweep", "double_pendulum", "--grid", "m2=0.5,1", "--grid", "q1=0.1,0.2", *DP_RUN,
+                           "--x0", "q2=0", "--scheduler", cluster.scheduler_address, "--out", out], capsys)
+    assert code == 0
+    local = tmp_path / "local.npz"
+    run_cli(["sweep", "double_pendulum", "--grid", "m2=0.5,1", "--grid", "q1=0.1,0.2", *DP_RUN, "--x0", "q2=0",
+             "--out", local], capsys)
+    # same C function on the same inputs: bitwise equal to the local-thread run
+    np.testing.assert_array_equal(np.load(out)["x_final"], np.load(local)["x_final"])

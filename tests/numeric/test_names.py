@@ -1,0 +1,212 @@
+"""Hostile names: model, coordinate, parameter and point names that are C keywords, <math.h>
+functions, lagcodegen's own local names, or text with spaces, quotes, semicolons and comment
+delimiters (sympy accepts any string as a Symbol or Function name).
+
+Each hostile model is the double pendulum stated with energies; the reference is the same
+physics with plain names (``a``, ``b``, ``m1`` ... ``g``), so every kernel must return the same
+numbers (the second route: only the names differ). The generated C must build under
+``gcc -std=c99 -Wall -Wextra -Wpedantic -Werror`` (float also ``-Wdouble-promotion``) and through
+``build_module``, and a name may appear verbatim only inside a C comment that it cannot close.
+"""
+from __future__ import annotations
+
+import functools
+import re
+import subprocess
+
+import numpy as np
+import pytest
+import sympy as sp
+
+from lagcodegen import derive_equations
+from lagcodegen.build import build_module
+from lagcodegen.cse import DEFAULT_OUTPUTS, reduce_expressions
+from lagcodegen.emit import render_sources
+from lagcodegen.model import TIME, Model
+
+STRICT = ["-std=c99", "-Wall", "-Wextra", "-Wpedantic", "-Werror"]
+PLAIN = ("plain_pendulum", ("a", "b"), ("m1", "m2", "l1", "l2", "g"), ("bob1", "bob2"))
+METHODS = ("rk4", "implicit_midpoint")  # exercise both stepper templates with the prefix
+#: (id, model name, 2 coordinate names, 5 parameter names (m1 m2 l1 l2 g), 2 point names)
+CASES = [
+    ("keywords", "int", ("double", "sin"), ("int", "t0", "x", "p", "M"), ("float", "cos")),
+    ("locals", "double", ("x", "p"), ("tmp0", "out", "lcg_x", "M", "sin"), ("out", "p")),
+    ("math", "sin", ("tmp0", "out"), ("x", "p", "t0", "double", "int"), ("sqrt", "M")),
+    ("spaces", "my model", ("M", "lcg_x"), ("my mass", 'a"b', "c d", "tmp1", "out"), ("bob 1", "bob 2")),
+    ("quotes", 'a"b', ('q"1', "q 2"), ('m"1', "m 2", "l;1", "l2", "g'"), ('"tip"', "it's")),
+    ("injection", 'x; system("rm -rf /"); double y', ("x; y", 'z"'),
+     ('p; exit(1);', "F", "ud", "xdot", "status"), ('x"); abort(); ("', "J")),
+    ("cse_names", "tmp0", ("tmp1", "tmp2"), ("tmp3", "tmp4", "tmp5", "tmp6", "tmp0"), ("tmp7", "D_0")),
+    ("solver_names", "lcg_x", ("M_0_0", "F_0"), ("D_0", "Dinv_0", "L_1_0", "y_0", "w_0"), ("qd", "B")),
+    ("unicode", "pendule θ", ("θ₁", "θ₂"), ("m₁", "m₂", "ℓ₁", "ℓ₂", "g"), ("⊕", "bob")),
+    ("newline", "two\nlines", ("q\n1", "q2"), ("m\\1", "m2", "l1", "l2", "g"), ("p\n", "q")),
+]
+#: names containing the comment delimiters; kept apart so a failure names the exact problem
+COMMENT_CASES = [
+    ("close_in_model", "evil */ model", ("a", "b"), ("m1", "m2", "l1", "l2", "g"), ("bob1", "bob2")),
+    ("close_in_coordinate", "pendulum", ("a*/b", "/*c"), ("m1", "m2", "l1", "l2", "g"), ("bob1", "bob2")),
+    ("close_in_parameter", "pendulum", ("a", "b"),
+     ("*/ int main(void) { return 0; } /*", "m2", "l1", "l2", "g"), ("bob1", "bob2")),
+    ("close_in_point", "pendulum", ("a", "b"), ("m1", "m2", "l1", "l2", "g"), ("tip */ x", "bob2")),
+]
+
+
+def pendulum(model_name, coordinates, parameters, points) -> Model:
+    """Planar double pendulum by energies (Goldstein 3rd ed., sec. 1.6), any names."""
+    q1, q2 = (sp.Function(c)(TIME) for c in coordinates)
+    m1, m2, l1, l2, g = (sp.Symbol(n, positive=True) for n in parameters)
+    x1, y1 = l1 * sp.sin(q1), -l1 * sp.cos(q1)
+    x2, y2 = x1 + l2 * sp.sin(q2), y1 - l2 * sp.cos(q2)
+    speed2 = lambda x, y: x.diff(TIME) ** 2 + y.diff(TIME) ** 2  # noqa: E731
+    T = m1 * speed2(x1, y1) / 2 + m2 * speed2(x2, y2) / 2
+    V = g * (m1 * y1 + m2 * y2)
+    return Model(model_name, [q1, q2], (m1, m2, l1, l2, g), kinetic_energy=T, potential_energy=V,
+                 points={points[0]: (x1, y1), points[1]: (x2, y2)},
+                 parameter_values={m1: 1.0, m2: 2.0, l1: 1.5, l2: 0.7, g: 9.81})
+
+
+@functools.lru_cache(maxsize=None)
+def reduced(case):
+    """Derived and CSE'd once per case (cases are tuples of strings)."""
+    _, model_name, coordinates, parameters, points = case
+    eom = derive_equations(pendulum(model_name, coordinates, parameters, points))
+    return reduce_expressions(eom, DEFAULT_OUTPUTS)
+
+
+def sources_of(case, precision="double", methods=METHODS):
+    """The C of ``case``; numeric comparisons pass ``methods=()``, the steppers only use the
+    prefix and cost build time, while the strict-warning compiles keep them."""
+    return render_sources(reduced(case), precision, methods=methods)
+
+
+def gcc_strict(sources, tmp_path, gcc, precision):
+    folder = tmp_path / precision
+    folder.mkdir()
+    (folder / sources.header_name).write_text(sources.header)
+    (folder / sources.source_name).write_text(sources.source)
+    flags = STRICT + (["-Wdouble-promotion"] if precision == "float" else [])
+    argv = [gcc, *flags, "-c", str(folder / sources.source_name), "-o", str(folder / "kernel.o")]
+    run = subprocess.run(argv, capture_output=True, text=True)
+    assert run.returncode == 0, f"{' '.join(argv)}\n{run.stderr}\n--- header ---\n{sources.header[:3000]}"
+
+
+# --- lexical checks ---------------------------------------------------------------------------
+
+_TOKENS = re.compile(r'"(?:\\.|[^"\\\n])*"|/\*.*?\*/|//[^\n]*', re.S)
+
+
+def comment_spans(code: str) -> list:
+    """(start, end) of every C comment, found the way the C lexer finds them (strings first)."""
+    return [m.span() for m in _TOKENS.finditer(code) if not m.group(0).startswith('"')]
+
+
+def without_comments(code: str) -> str:
+    return _TOKENS.sub(lambda m: m.group(0) if m.group(0).startswith('"') else " ", code)
+
+
+def hostile(names) -> list:
+    """The names that are not plain identifiers (those are mangled, never printed as code)."""
+    return [n for n in names if not re.fullmatch(r"[A-Za-z0-9_]+", n)]
+
+
+def assert_names_stay_in_comments(text: str, names, where: str) -> None:
+    spans = comment_spans(text)
+    for name in hostile(names):
+        start = text.find(name)
+        while start != -1:
+            end = start + len(name)
+            assert any(a <= start and end <= b for a, b in spans), (
+                f"{where}: name {name!r} appears outside a C comment (or closes one) at offset {start}:\n"
+                f"{text[max(0, start - 200):end + 200]}")
+            start = text.find(name, start + 1)
+    code = without_comments(text)
+    for line in code.splitlines():
+        if '"' in line:  # the only string literal in kernel code is the own-header include
+            assert re.fullmatch(r'\s*#include "lcg_[A-Za-z0-9_]+\.h"\s*', line), f"{where}: {line!r}"
+
+
+def case_names(case) -> list:
+    _, model_name, coordinates, parameters, points = case
+    return [model_name, *coordinates, *(c + "_d" for c in coordinates), *parameters, *points]
+
+
+# --- numbers: hostile names give the plain model's values -------------------------------------
+
+def call_all(system, t, x, p) -> dict:
+    ffi, lib, layout = system.ffi, system.lib, system.layout
+    n, real, prefix = layout.n, layout.precision, layout.prefix
+    xs, ps = ffi.new(f"{real}[]", list(x)), ffi.new(f"{real}[]", list(p))
+    out = {}
+    for name, size in (("mass_matrix", n * n), ("forcing", n), ("accel", n), ("rhs", 2 * n),
+                       ("points", 3 * len(layout.points)), ("jacobian", 4 * n * n)):
+        buf = ffi.new(f"{real}[]", size)
+        status = getattr(lib, f"{prefix}_{name}")(t, xs, ps, buf)
+        assert status in (None, 0), f"{prefix}_{name} returned {status}"
+        out[name] = np.array(list(buf))
+    out["energy"] = np.array([getattr(lib, f"{prefix}_energy")(t, xs, ps)])
+    return out
+
+
+@pytest.fixture(scope="module")
+def plain_system(kernel_cache_dir):
+    return build_module(sources_of(("plain",) + PLAIN, methods=()))
+
+
+def check_same_numbers(system, plain, rng):
+    assert system.layout.n == plain.layout.n == 2
+    for _ in range(3):
+        t = float(rng.uniform(0, 2))
+        x = np.concatenate([rng.uniform(-1.2, 1.2, 2), rng.uniform(-1, 1, 2)])
+        p = np.array([1.0, 2.0, 1.5, 0.7, 9.81]) * rng.uniform(0.7, 1.3, 5)
+        got, want = call_all(system, t, x, p), call_all(plain, t, x, p)
+        for key in want:
+            # same maths, CSE may order terms differently with other names: double rounding only
+            error = np.abs(got[key] - want[key]) / np.maximum(1.0, np.abs(want[key]))
+            assert error.max() <= 1e-12, f"{key}: {got[key]} != {want[key]}"
+
+
+@pytest.mark.compiler
+@pytest.mark.parametrize("case", CASES, ids=[c[0] for c in CASES])
+def test_hostile_names_compile_strict(case, tmp_path, require_tool):
+    gcc = require_tool("gcc")
+    for precision in ("double", "float"):
+        sources = sources_of(case, precision)
+        gcc_strict(sources, tmp_path, gcc, precision)
+        for attr in ("header", "source", "cdef"):
+            assert_names_stay_in_comments(getattr(sources, attr), case_names(case), f"{case[0]} {attr}")
+        assert re.fullmatch(r"lcg_[A-Za-z0-9_]+", sources.layout.prefix)
+
+
+@pytest.mark.compiler
+@pytest.mark.parametrize("case", CASES, ids=[c[0] for c in CASES])
+def test_hostile_names_give_plain_values(case, plain_system, rng):
+    sources = sources_of(case, methods=())
+    layout = sources.layout
+    _, model_name, coordinates, parameters, points = case
+    # the layout keeps the user's names; only the C identifiers are mangled
+    assert layout.model == model_name
+    assert layout.coordinates == coordinates and layout.parameters == parameters
+    assert layout.points == points
+    check_same_numbers(build_module(sources), plain_system, rng)
+
+
+@pytest.mark.compiler
+@pytest.mark.parametrize("case", COMMENT_CASES, ids=[c[0] for c in COMMENT_CASES])
+def test_names_cannot_close_comments(case, tmp_path, require_tool, plain_system, rng):
+    """A name holding ``*/`` must not end the header's input table (or any other) comment."""
+    gcc = require_tool("gcc")
+    sources = sources_of(case)
+    for attr in ("header", "source", "cdef"):
+        assert_names_stay_in_comments(getattr(sources, attr), case_names(case), f"{case[0]} {attr}")
+    gcc_strict(sources, tmp_path, gcc, "double")
+    check_same_numbers(build_module(sources_of(case, methods=())), plain_system, rng)
+
+
+@pytest.mark.compiler
+def test_parameter_named_t_is_not_time(tmp_path, require_tool, plain_system, rng):
+    """A parameter Symbol('t', positive=True) is not the time symbol Symbol('t'): the kernels
+    read it from p[] and must still mark the unused time argument ``(void)t;``."""
+    gcc = require_tool("gcc")
+    case = ("param_t", "pendulum", ("a", "b"), ("t", "m2", "l1", "l2", "g"), ("bob1", "bob2"))
+    check_same_numbers(build_module(sources_of(case, methods=())), plain_system, rng)
+    gcc_strict(sources_of(case), tmp_path, gcc, "double")

@@ -1,0 +1,334 @@
+"""Linear stability of the compiled fixed-step methods, measured through the whole pipeline.
+
+Expected values come from two independent places:
+
+* the tableau's theory: one step of any Runge-Kutta method multiplies a mode of ``y' = lambda y``
+  by ``R(h lambda)`` (Hairer-Wanner II, Sec. IV.2-IV.3), with ``R`` from
+  ``ButcherTableau.stability_polynomial()`` and the limits from ``real_stability_limit()`` /
+  ``imag_stability_limit()``; symplectic Euler on ``x'' = -w^2 x`` keeps
+  ``v^2 + w^2 x^2 - h w^2 x v`` exactly (checked symbolically, see `_symplectic_euler_bound`) and
+  is stable for ``h w < 2`` (trace ``2 - (h w)^2`` of its map);
+* numpy / scipy linear algebra on the hand-written matrices of the stiff chain (masses m_i,
+  stiffness matrix from the springs k, k, K, k between the walls): the frequencies ``w_i`` and the
+  modal energies, never the generated code.
+
+For an undamped linear chain a Runge-Kutta step maps the complex modal amplitude
+``w_i eta_i + i eta_i'`` to ``R(-i h w_i)`` times itself, so the energy of mode i is multiplied
+by ``|R(i h w_i)|^2`` per step, exactly (up to rounding).
+"""
+from __future__ import annotations
+
+import math
+import warnings
+
+import numpy as np
+import pytest
+import scipy.linalg
+import sympy as sp
+import sympy.physics.mechanics as me
+
+from lagcodegen import Model, schemes
+from lagcodegen.pipeline import compile_model
+from lagcodegen.simulate import StabilityWarning, Status, simulate
+from lagcodegen.tableaux import Z
+
+EXPLICIT_RK = tuple(m for m in schemes.DEFAULT_METHODS
+                    if schemes.scheme_kind(schemes.get_scheme(m)) == schemes.KIND_EXPLICIT)
+L_STABLE = ("backward_euler", "sdirk2", "radau_iia3")
+RK4_IMAG_LIMIT = 2 * math.sqrt(2)  # |R(iy)| = 1 at y = 2 sqrt(2) for RK4 (HW II, Sec. IV.2)
+
+# stiff_chain defaults (catalog.stiff_chain): m1 = m2 = m3 = 1, k = 1, K = 1e4
+CHAIN = {"m1": 1.0, "m2": 1.0, "m3": 1.0, "k": 1.0, "K": 1.0e4}
+
+
+# -- independent linear algebra of the stiff chain ----------------------------------------
+def chain_matrices(m1, m2, m3, k, K):
+    """Mass and stiffness matrices written from the springs: wall-k-m1-k-m2-K-m3-k-wall."""
+    mass = np.diag([m1, m2, m3])
+    stiffness = np.array([[2 * k, -k, 0.0],
+                          [-k, k + K, -K],
+                          [0.0, -K, K + k]])
+    return mass, stiffness
+
+
+def chain_modes():
+    """(w (3,), Phi (3, 3)) with K Phi = M Phi diag(w^2), Phi^T M Phi = I (scipy eigh)."""
+    mass, stiffness = chain_matrices(**CHAIN)
+    w2, phi = scipy.linalg.eigh(stiffness, mass)
+    return np.sqrt(w2), phi
+
+
+def largest_frequency() -> float:
+    """sqrt of the largest eigenvalue of M^-1 K, from numpy (an independent route)."""
+    mass, stiffness = chain_matrices(**CHAIN)
+    return float(np.sqrt(np.max(np.linalg.eigvals(np.linalg.solve(mass, stiffness)).real)))
+
+
+def modal_energies(x) -> np.ndarray:
+    """Energy (w_i^2 eta_i^2 + eta_i'^2) / 2 of each mode of the state x = (q, u) (6,)."""
+    w, phi = chain_modes()
+    mass, _ = chain_matrices(**CHAIN)
+    eta, eta_d = phi.T @ mass @ x[:3], phi.T @ mass @ x[3:]
+    return (w ** 2 * eta ** 2 + eta_d ** 2) / 2
+
+
+def stability_function(method: str):
+    """R(z) of the method's tableau as a numpy function."""
+    return sp.lambdify(Z, schemes.get_scheme(method).stability_polynomial(), "numpy")
+
+
+def predicted_energy(method: str, x0, h: float, n_steps: int) -> float:
+    """Sum over modes of E_i(0) |R(i h w_i)|^(2 n): the exact energy after n RK steps."""
+    w, _ = chain_modes()
+    growth = np.abs(stability_function(method)(1j * h * w)) ** 2
+    return float(np.sum(modal_energies(np.asarray(x0)) * growth ** n_steps))
+
+
+def _symplectic_euler_bound(y: float) -> float:
+    """Largest E_n / E_0 of symplectic Euler on one mode with h w = y < 2.
+
+    Its invariant Q = v^2 + w^2 x^2 - h w^2 x v (sympy: Q(step(x, v)) - Q(x, v) == 0) lies
+    between 2E (1 - y/2) and 2E (1 + y/2) because |w x v| <= E.
+    """
+    x, v, h, w = sp.symbols("x v h w")
+    Q = lambda x, v: v ** 2 + w ** 2 * x ** 2 - h * w ** 2 * x * v  # noqa: E731
+    v1 = v - h * w ** 2 * x
+    assert sp.simplify(Q(x + h * v1, v1) - Q(x, v)) == 0
+    return (1 + y / 2) / (1 - y / 2)
+
+
+X0_CHAIN = (0.1, 0.05, -0.05, 0.0, 0.0, 0.0)  # excites all three modes
+
+
+@pytest.fixture(scope="module")
+def chain(compiled_example):
+    return compiled_example("stiff_chain", methods=schemes.DEFAULT_METHODS)
+
+
+@pytest.fixture(scope="module")
+def damped_particle(kernel_cache_dir):
+    """T = m xd^2 / 2, Q = -c xd: Jacobian eigenvalues 0 and -c/m (c/m = 1.5)."""
+    m, c = sp.symbols("m c", positive=True)
+    x = me.dynamicsymbols("x")
+    model = Model("damped_particle", [x], (m, c), kinetic_energy=m * x.diff() ** 2 / 2,
+                  generalized_forces={x: -c * x.diff()}, parameter_values={m: 2.0, c: 3.0})
+    return compile_model(model, methods=schemes.DEFAULT_METHODS)
+
+
+def run_quietly(system, x0, n_steps, h, method, **kwargs):
+    """simulate over n_steps without the stability check (its warning is tested separately)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        return simulate(system, x0, n_steps * h, h, method, check_stability=False, **kwargs)
+
+
+# -- negative real axis: the damped particle -----------------------------------------------
+@pytest.mark.parametrize("method", EXPLICIT_RK)
+@pytest.mark.parametrize("factor", [0.98, 1.02])
+def test_real_axis_limit_on_the_damped_particle(damped_particle, method, factor):
+    lam = 3.0 / 2.0  # c / m: the Jacobian's eigenvalue is -lam (u' = -(c/m) u)
+    limit = schemes.get_scheme(method).real_stability_limit()
+    h, n_steps, u0 = factor * limit / lam, 2000, 1.0
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", StabilityWarning)  # no warning inside the limit
+        if factor > 1:
+            with pytest.warns(StabilityWarning, match=method):
+                traj = simulate(damped_particle, (0.3, u0), n_steps * h, h, method)
+        else:
+            traj = simulate(damped_particle, (0.3, u0), n_steps * h, h, method)
+    u = traj["x_d"]
+    # Expected: u_n = R(-h lam)^n u0 exactly (tableau theory), |R| < 1 inside, > 1 outside.
+    R = float(stability_function(method)(-h * lam))
+    assert (abs(R) < 1) == (factor < 1)
+    if factor < 1:
+        assert traj.ok
+        assert np.all(np.abs(u) <= u0)  # decays, never exceeds the start
+        assert abs(u[-1]) < 1e-20 * u0
+        assert np.all(np.abs(traj["x"]) < 10)  # x' = u, so x stays bounded
+    else:
+        assert traj.status == Status.NONFINITE_STATE or abs(u[-1]) > 1e6 * u0
+    if traj.ok:
+        assert u[-1] == pytest.approx(R ** n_steps * u0, rel=1e-9)
+
+
+# -- imaginary axis: the stiff chain --------------------------------------------------------
+def test_largest_frequency_independent_routes_agree():
+    w, _ = chain_modes()
+    assert largest_frequency() == pytest.approx(w.max(), rel=1e-12)
+    assert largest_frequency() == pytest.approx(math.sqrt(2e4), rel=1e-3)  # ~ sqrt(2K/m) for K >> k
+
+
+def test_rk4_bounded_just_inside_the_imaginary_limit(chain):
+    w = largest_frequency()
+    h, n_steps = 0.95 * RK4_IMAG_LIMIT / w, 20000
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", StabilityWarning)
+        traj = simulate(chain, X0_CHAIN, n_steps * h, h, "rk4", stride=100, energy=True)
+    assert traj.ok
+    e0 = float(np.sum(modal_energies(np.array(X0_CHAIN))))
+    assert traj.energy[0] == pytest.approx(e0, rel=1e-12)
+    assert np.all(traj.energy <= e0 * (1 + 1e-12))  # |R| <= 1 on every mode
+    assert traj.energy[-1] == pytest.approx(predicted_energy("rk4", X0_CHAIN, h, n_steps), rel=1e-8)
+
+
+def test_rk4_blows_up_just_outside_the_imaginary_limit(chain):
+    w = largest_frequency()
+    h, n_steps, t0 = 1.05 * RK4_IMAG_LIMIT / w, 20000, 0.25
+    with pytest.warns(StabilityWarning, match="rk4"), pytest.warns(RuntimeWarning, match="NaN or infinite"):
+        traj = simulate(chain, X0_CHAIN, t0 + n_steps * h, h, "rk4", t0=t0)
+    assert traj.status == Status.NONFINITE_STATE
+    assert traj.failed_step is not None and traj.failed_time is not None
+    assert traj.failed_time == pytest.approx(t0 + (traj.failed_step - 1) * h, rel=1e-12)
+    assert len(traj.t) == traj.failed_step  # samples 0 .. failed_step - 1 (stride 1)
+    assert np.all(np.isfinite(traj.x)) and traj.t[-1] == pytest.approx(traj.failed_time)
+    # Expected: the stiff mode grows by |R(i y)| per step until it overflows DBL_MAX (~1.8e308);
+    # the stage arithmetic (w^2 x ~ 2e4 x) overflows a few percent of the steps earlier.
+    growth = abs(stability_function("rk4")(1j * h * w))
+    amplitude0 = math.sqrt(2 * modal_energies(np.array(X0_CHAIN))[-1]) / w
+    overflow = (math.log(np.finfo(float).max) - math.log(amplitude0)) / math.log(growth)
+    assert 0.95 * overflow < traj.failed_step <= 1.01 * overflow
+    assert len(traj.t) > 1000
+
+
+def test_explicit_euler_energy_grows_at_any_step(chain):
+    w = largest_frequency()
+    for y in (0.1, 0.01, 0.001):
+        h, n_steps = y / w, 10000
+        traj = run_quietly(chain, X0_CHAIN, n_steps, h, "euler", stride=n_steps, energy=True)
+        assert traj.ok
+        assert traj.energy[-1] > traj.energy[0]
+        # Expected: |R(iy)|^2 = 1 + y^2 > 1 for every y > 0, per mode (tableau theory).
+        assert traj.energy[-1] == pytest.approx(predicted_energy("euler", X0_CHAIN, h, n_steps), rel=1e-6)
+
+
+def test_symplectic_euler_bounded_below_hw_2(chain):
+    w, y, n_steps = largest_frequency(), 1.9, 5000
+    h = y / w
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", StabilityWarning)
+        traj = simulate(chain, X0_CHAIN, n_steps * h, h, "symplectic_euler", energy=True)
+    assert traj.ok
+    assert np.max(traj.energy) <= traj.energy[0] * _symplectic_euler_bound(y)
+    assert np.min(traj.energy) >= traj.energy[0] / _symplectic_euler_bound(y)
+
+
+def test_symplectic_euler_grows_above_hw_2(chain):
+    w, y, n_steps = largest_frequency(), 2.1, 5000
+    h = y / w
+    with pytest.warns(StabilityWarning, match="symplectic_euler"), pytest.warns(RuntimeWarning):
+        traj = simulate(chain, X0_CHAIN, n_steps * h, h, "symplectic_euler", energy=True)
+    # Expected: trace 2 - y^2 = -2.41 < -2, an eigenvalue of modulus 1.88 per step: overflow.
+    assert traj.status == Status.NONFINITE_STATE
+    assert traj.energy[-1] > 1e100 * traj.energy[0]
+
+
+def test_implicit_midpoint_conserves_energy_far_beyond_the_explicit_limits(chain):
+    w, n_steps = largest_frequency(), 1000
+    h = 10 * RK4_IMAG_LIMIT / w
+    traj = simulate(chain, X0_CHAIN, n_steps * h, h, "implicit_midpoint", energy=True).check()
+    # Expected: |R(iy)| = 1 for Gauss methods: a quadratic invariant is kept exactly (GNI, Thm. IV.2.1).
+    assert np.max(np.abs(traj.energy / traj.energy[0] - 1)) < 1e-10
+
+
+@pytest.mark.parametrize("method", L_STABLE)
+def test_l_stable_methods_damp_the_stiff_mode(chain, method):
+    w, n_steps = largest_frequency(), 50
+    h = 100 / w
+    traj = simulate(chain, X0_CHAIN, n_steps * h, h, method, energy=True).check()
+    assert np.all(np.diff(traj.energy) <= 1e-12 * traj.energy[0])  # A-stable: never gains energy
+    assert traj.energy[-1] < traj.energy[0]
+    # Expected: each mode's energy times |R(i h w_i)|^(2n); R(i 100) is small (L-stable).
+    assert abs(stability_function(method)(100j)) < 0.05
+    expected = predicted_energy(method, X0_CHAIN, h, n_steps)
+    assert traj.energy[-1] == pytest.approx(expected, rel=1e-6)
+    # The stiff mode itself is gone down to rounding (its theory value is below 1e-60 of the start).
+    assert modal_energies(traj.x[-1])[-1] < 1e-20 * modal_energies(np.array(X0_CHAIN))[-1]
+
+
+def test_stability_warning_at_105_not_at_095(chain):
+    w = largest_frequency()
+    for factor, expect in ((0.95, False), (1.05, True)):
+        h = factor * RK4_IMAG_LIMIT / w
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            simulate(chain, X0_CHAIN, 100 * h, h, "rk4")
+        assert any(issubclass(c.category, StabilityWarning) for c in caught) == expect, factor
+
+
+# -- measured limits ------------------------------------------------------------------------
+MEASURE_STEPS = 100_000
+MEASURED_METHODS = EXPLICIT_RK + ("symplectic_euler",)
+
+
+def _stiff_mode_start():
+    """The stiff mode alone (scipy eigenvector), amplitude 0.01, at rest."""
+    _, phi = chain_modes()
+    return tuple(0.01 * phi[:, -1] / np.max(np.abs(phi[:, -1]))) + (0.0, 0.0, 0.0)
+
+
+def is_bounded(chain, method: str, y: float, n_steps: int = MEASURE_STEPS) -> bool:
+    """Whether n_steps of size h = y / w keep the stiff mode's energy bounded.
+
+    Bounded: the run completes and E_n <= G E_0, with G = 2 for Runge-Kutta methods (their mode
+    energy never grows when |R(iy)| <= 1) and G = 1e6 for symplectic Euler (its energy oscillates
+    by up to (1 + y/2) / (1 - y/2) inside the limit).
+    """
+    h = y / largest_frequency()
+    traj = run_quietly(chain, _stiff_mode_start(), n_steps, h, method, stride=n_steps, energy=True)
+    allowed = 1e6 if method == "symplectic_euler" else 2.0
+    return traj.ok and bool(traj.energy[-1] <= allowed * traj.energy[0])
+
+
+def measured_stability_limit(chain, method: str, low: float, high: float, rtol: float = 1e-3) -> float:
+    """Bisection on h w between a bounded `low` and an unbounded `high` (geometric midpoints)."""
+    assert is_bounded(chain, method, low) and not is_bounded(chain, method, high), (method, low, high)
+    while high / low > 1 + rtol:
+        middle = math.sqrt(low * high)
+        low, high = (middle, high) if is_bounded(chain, method, middle) else (low, middle)
+    return math.sqrt(low * high)
+
+
+def doubling_point(method: str, n_steps: int = MEASURE_STEPS) -> float:
+    """For methods unstable on the whole imaginary axis: the y with |R(iy)|^(2n) = 2 (theory)."""
+    if method == "euler":  # |R(iy)|^2 = 1 + y^2
+        return math.sqrt(2 ** (1 / n_steps) - 1)
+    if method == "heun":  # |R(iy)|^2 = (1 - y^2/2)^2 + y^2 = 1 + y^4 / 4
+        return (4 * (2 ** (1 / n_steps) - 1)) ** 0.25
+    raise ValueError(method)
+
+
+@pytest.fixture(scope="module")
+def measured_limits(chain):
+    """method -> (theoretical imag limit, measured h w limit over MEASURE_STEPS steps)."""
+    table = {}
+    for method in MEASURED_METHODS:
+        theory = schemes.get_scheme(method).imag_stability_limit()
+        if theory > 0:
+            table[method] = (theory, measured_stability_limit(chain, method, 0.5 * theory, 1.5 * theory))
+        else:
+            table[method] = (theory, measured_stability_limit(chain, method, 1e-4, 1.0))
+    return table
+
+
+@pytest.mark.parametrize("method", MEASURED_METHODS)
+def test_measured_limit_matches_the_tableau(measured_limits, method):
+    theory, measured = measured_limits[method]
+    if theory > 0:
+        # Expected: imag_stability_limit() (rk4 2 sqrt 2, kutta3 sqrt 3, dopri5 0.997, symplectic
+        # Euler 2); growth just above it is slow for dopri5, so the measurement errs on the high side.
+        assert measured == pytest.approx(theory, rel=0.02)
+        assert measured >= theory * (1 - 1e-3)
+    else:
+        # Unstable for every h w > 0: the only threshold is where n steps double the energy.
+        assert measured == pytest.approx(doubling_point(method), rel=0.02)
+
+
+def test_print_measured_limits(measured_limits):
+    lines = [f"\nImaginary-axis stability limits (h w, stiff chain, bounded over {MEASURE_STEPS} steps)",
+             f"{'method':<18} {'tableau':>9} {'measured':>9}  note"]
+    for method, (theory, measured) in measured_limits.items():
+        note = f"doubling point {doubling_point(method):.4g}" if theory == 0 else \
+            f"{100 * (measured / theory - 1):+.2f}%"
+        lines.append(f"{method:<18} {theory:>9.4f} {measured:>9.4f}  {note}")
+    print("\n".join(lines))
+    assert set(measured_limits) == set(MEASURED_METHODS)
