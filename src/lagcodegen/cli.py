@@ -295,7 +295,8 @@ def cmd_simulate(args) -> int:
     elapsed = time.perf_counter() - start
     steps = round(args.t_end / args.h)
     print(f"{eom.name}, {run.method}, h = {args.h:g}, {steps} steps to t = {args.t_end:g}: {run.message}")
-    print("final state: " + ", ".join(f"{n} = {v:.9g}" for n, v in zip(run.names, run.x[-1])))
+    print(f"state at t = {run.t[-1]:.9g} (last kept sample): "
+          + ", ".join(f"{n} = {v:.9g}" for n, v in zip(run.names, run.x[-1])))
     if run.energy is not None:
         drift = float(np.max(np.abs(run.energy - run.energy[0])))
         relative = drift / abs(float(run.energy[0])) if run.energy[0] else float("inf")
@@ -518,13 +519,13 @@ Exit code 0, or 130 when interrupted (Ctrl-C; the finished members are still wri
 
 def add_run_arguments(parser) -> None:
     """Options shared by simulate and sweep."""
-    from .schemes import DEFAULT_METHODS
+    from .schemes import SCHEMES
 
     parser.add_argument("model", help="example name (see `lagcodegen examples`) or model file")
     parser.add_argument("--t-end", type=float, required=True, metavar="T",
                         help="end time (t starts at 0; T must be a whole number of steps H)")
     parser.add_argument("--h", type=float, required=True, metavar="H", help="fixed step size")
-    parser.add_argument("--method", default="rk4", choices=DEFAULT_METHODS,
+    parser.add_argument("--method", default="rk4", choices=tuple(SCHEMES),
                         help="integrator, compiled in alone (default: rk4)")
     parser.add_argument("--x0", action="append", metavar="NAME=VALUE",
                         help="initial state, e.g. --x0 q1=1,q2=0.5; every coordinate needs a value "

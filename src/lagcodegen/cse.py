@@ -22,6 +22,7 @@ OUTPUT_KERNELS = {
     "energy": "energy",
     "points": "points",
     "jacobian": "jacobian",
+    "momentum": "momentum",
 }
 DEFAULT_OUTPUTS = ("mass_matrix", "forcing", "accel", "rhs", "energy", "points", "jacobian")
 
@@ -138,6 +139,8 @@ def _checked_outputs(eom: EquationsOfMotion, outputs) -> list:
             raise KernelError(f"model {eom.name!r} has no energies (route {eom.route}); drop 'energy'")
         if out == "points" and not eom.points:
             continue  # nothing to output: the scene names no points
+        if out == "momentum" and (reason := momentum_obstacle(eom)) is not None:
+            raise KernelError(f"the momentum output (symplectic Euler) does not apply to {eom.name!r}: {reason}")
         if out not in chosen:
             chosen.append(out)
     if not chosen:
@@ -184,6 +187,8 @@ def _output_blocks(eom: EquationsOfMotion, outputs, accelerations) -> dict:
             blocks[kernel] = [(("E", 0, 0), eom.energy)]
         elif kernel == "jacobian":
             blocks[kernel] = lower + _jacobian_block(eom, accelerations)
+        elif kernel == "momentum":
+            blocks[kernel] = lower + _momentum_block(eom)
         elif kernel == "points":
             blocks[kernel] = [(("P", i, c), pos[c]) for i, (_, pos) in enumerate(eom.points)
                               for c in range(len(pos))]
@@ -221,3 +226,39 @@ def _classical(derivative):
     if not derivative.has(sp.DiracDelta, sp.Derivative):
         return derivative
     return derivative.replace(switch, lambda e: sp.S.Zero)
+
+
+def momentum_obstacle(eom: EquationsOfMotion) -> str | None:
+    """Why the momentum form p = M(q) u does not describe ``eom`` (None when it does).
+
+    Symplectic Euler in (q, p) needs T = 1/2 u^T M(q) u: no explicit t in M, no term linear in the
+    speeds (moving frames, gyroscopic couplings), and qd = u.
+    """
+    from .quadratic import NotQuadratic, quadratic_terms
+
+    if list(eom.kinematics) != list(eom.u):
+        return "its generalized speeds are not the coordinate rates (qd != u)"
+    if eom.t in eom.mass_matrix.free_symbols:
+        return "its mass matrix depends on time"
+    if eom.kinetic_energy is None:
+        return "it gives no kinetic energy to check that T = 1/2 u^T M u"
+    try:
+        terms = quadratic_terms(eom.kinetic_energy, eom.u, eom.parameters)
+    except NotQuadratic:
+        return "its kinetic energy is not quadratic in the speeds"
+    linear = sp.Add(*[w * e for key, w, e in terms if len(key) == 1])
+    if linear != 0:
+        return "its kinetic energy has terms linear in the speeds (p != M u)"
+    return None
+
+
+def _momentum_block(eom: EquationsOfMotion) -> list:
+    """G = dL/dq + Q = F + sum_kl dM_jl/dq_k u_k u_l (for T = 1/2 u^T M(q) u, p = M u)."""
+    n, q, u = eom.n, eom.q, eom.u
+    M = eom.mass_matrix
+    rows = []
+    for j in range(n):
+        transport = [M[j, l].diff(q[k]) * u[k] * u[l]
+                     for l in range(n) if M[j, l] != 0 for k in range(n) if q[k] in M[j, l].free_symbols]
+        rows.append((("G", j, 0), eom.forcing[j] + sp.Add(*transport)))
+    return rows

@@ -294,6 +294,16 @@ def _function_record(system, kernel, names, printer, real, output):
                        f"Positions of {len(system.point_names)} named points, 3 values each.", body)
     if output == "jacobian":
         return _jacobian_record(system, kernel, names, printer, real)
+    if output == "momentum":
+        body = _body_head(kernel, names, printer, real) + ["/* Mass matrix, lower triangle, mirrored */"]
+        for (j, k), expr in _results(kernel, "M").items():
+            body.append(f"M[{j * n + k}] = {_print(printer, expr, f'M[{j}][{k}]')};")
+            if j != k:
+                body.append(f"M[{k * n + j}] = M[{j * n + k}];")
+        body.append("/* G = dL/dq + Q */")
+        body += [f"G[{j}] = {_print(printer, expr, f'G[{j}]')};" for (j, _), expr in _results(kernel, "G").items()]
+        return _record(f"void {prefix}_momentum({args}, {real} *M, {real} *G)",
+                       f"M(q) (row-major {n} x {n}) and G = dL/dq + Q, for symplectic Euler in p = M u.", body)
     raise EmitError(f"unknown output {output!r}")
 
 
@@ -464,7 +474,7 @@ def _stepper_context(system: ReducedSystem, names: _Names, real: str, methods: l
                "identity_kinematics": system.kinematics_identity, "zero": _literal(0, real),
                "one": _literal(1, real), "fsuffix": "f" if real == "float" else "",
                "newton_tolerance": _literal(NEWTON_TOLERANCE[real], real), "newton_max": NEWTON_MAX_ITERATIONS,
-               "n_state_squared": N * N, "has_energy": "energy" in system.outputs, "has_points": points > 0,
+               "n_state_squared": N * N, "n_squared": n * n, "se_work": 3 * n * n + 5 * n + N, "has_energy": "energy" in system.outputs, "has_points": points > 0,
                "n_point_values": 3 * points, "work_size": N, "method_rows": []}
     if not methods:
         return context
@@ -486,7 +496,9 @@ def _stepper_context(system: ReducedSystem, names: _Names, real: str, methods: l
             record["call_in_driver"] = f"{prefix}_{stepper}({s}, {arrays}, t, x, p, h, scratch)"
             context["has_explicit" if kind == KIND_EXPLICIT else "has_implicit"] = True
         else:
-            record["work"] = N
+            if "momentum" not in system.outputs:
+                raise EmitError(f"method {name!r} needs the 'momentum' output; add it to outputs")
+            record["work"] = 3 * n * n + 5 * n + N
             record["call"] = f"{prefix}_symplectic_euler_step(*t, x, p, h, work)"
             record["call_in_driver"] = f"{prefix}_symplectic_euler_step(t, x, p, h, scratch)"
             context["has_symplectic_euler"] = True

@@ -88,7 +88,7 @@ def first_crossing_time(result: SweepResult, names: Sequence[str], threshold: fl
     if unknown or not names:
         raise ValueError(f"unknown state variable(s) {unknown or names}; state: {', '.join(result.state_names)}")
     columns = [result.state_names.index(name) for name in names]
-    size = np.nanmax(np.abs(result.trajectories[:, :, columns]), axis=2)  # (n_members, n_out)
+    size = np.abs(result.trajectories[:, :, columns]).max(axis=2)  # (n_members, n_out); NaN after a failure
     with np.errstate(invalid="ignore"):
         above = size > threshold
     crossed = above.any(axis=1)
@@ -137,12 +137,17 @@ def grid_axes(result: SweepResult, x: str | None = None, y: str | None = None) -
     ``y`` named, any sweep (grid or table, extra columns allowed) whose members form a complete
     grid over those two columns.
     """
-    if x is None and y is None:
+    if x is None or y is None:
         if len(result.columns) != 2:
             raise ValueError(f"a heatmap needs two swept columns, this sweep varies {', '.join(result.columns)}; "
-                             "name them with x= and y=")
-        y, x = result.columns
-        if result.grid is not None:
+                             "name both with x= and y=")
+        if x is None and y is None:
+            y, x = result.columns
+        elif x is None:
+            x = next((c for c in result.columns if c != y), None)
+        else:
+            y = next((c for c in result.columns if c != x), None)
+        if result.grid is not None and (y, x) == result.columns:
             shape = tuple(len(axis) for axis in result.grid)
             return (y, x), tuple(np.asarray(a, dtype=float) for a in result.grid), \
                 np.unravel_index(np.arange(result.n_members), shape)

@@ -8,7 +8,7 @@ from __future__ import annotations
 from typing import Mapping
 
 from .build import CompiledSystem, build_module
-from .cse import reduce_expressions
+from .cse import momentum_obstacle, reduce_expressions
 from .derive import EquationsOfMotion, derive_equations
 from .emit import render_sources
 from .model import Model
@@ -27,7 +27,9 @@ def compile_model(model: Model | EquationsOfMotion, *, outputs=None, fixed: Mapp
     model : Model or EquationsOfMotion
     outputs : sequence of str, optional
         Kernel outputs; default ``SIMULATION_OUTPUTS`` (without ``energy`` when the model has no
-        energies, without ``jacobian`` when no implicit method is requested).
+        energies, without ``jacobian`` when no implicit method is requested). The outputs the
+        methods need (``rhs``; ``jacobian`` for implicit ones; ``momentum`` for symplectic Euler)
+        are always added.
     fixed : mapping parameter -> float, optional
         Parameters folded into the code; the rest stay runtime inputs.
     methods : sequence of str
@@ -35,10 +37,19 @@ def compile_model(model: Model | EquationsOfMotion, *, outputs=None, fixed: Mapp
     precision : {"double", "float"}
     """
     eom = model if isinstance(model, EquationsOfMotion) else derive_equations(model)
+    methods = tuple(methods)
+    if methods == DEFAULT_METHODS and momentum_obstacle(eom) is not None:
+        methods = tuple(m for m in methods if m != "symplectic_euler")  # not applicable: see momentum_obstacle
     if outputs is None:
         outputs = [o for o in SIMULATION_OUTPUTS
                    if not (o == "energy" and eom.energy is None)
                    and not (o == "jacobian" and not needs_jacobian(methods))]
+
+    outputs = list(outputs)
+    needed = ["rhs"] if methods else []  # the integrators' own needs come with them
+    needed += ["jacobian"] if needs_jacobian(methods) else []
+    needed += ["momentum"] if "symplectic_euler" in methods else []
+    outputs += [o for o in needed if o not in outputs]
     system = reduce_expressions(eom, outputs, fixed)
     sources = render_sources(system, precision, methods=methods)
     return build_module(sources, cache_dir=cache_dir, extra_compile_args=extra_compile_args)

@@ -13,14 +13,14 @@ from pathlib import Path
 import sympy as sp
 
 from .catalog import EXAMPLES
-from .cse import reduce_expressions
+from .cse import momentum_obstacle, reduce_expressions
 from .derive import EquationsOfMotion, derive_equations
 from .emit import _environment, comment_text, render_sources
 
 #: time of the C tests' sample state (rheonomic models depend on it)
 SAMPLE_TIME = 0.25
 TOLERANCE = {"double": "1e-12", "float": "2e-4"}
-EXAMPLE_OUTPUTS = ("mass_matrix", "forcing", "accel", "rhs", "energy", "points", "jacobian")
+EXAMPLE_OUTPUTS = ("mass_matrix", "forcing", "accel", "rhs", "energy", "points", "jacobian", "momentum")
 #: steppers compiled into the committed examples (embedded users get these step functions)
 EXAMPLE_METHODS = ("rk4", "symplectic_euler", "implicit_midpoint")
 
@@ -53,11 +53,14 @@ def sample_state(eom: EquationsOfMotion) -> SampleState:
 def example_files(name: str) -> dict:
     """File name -> text for one catalog example (double and float kernels and their C tests)."""
     eom = derive_equations(EXAMPLES[name]())
-    system = reduce_expressions(eom, EXAMPLE_OUTPUTS)
+    applicable = momentum_obstacle(eom) is None
+    outputs = EXAMPLE_OUTPUTS if applicable else tuple(o for o in EXAMPLE_OUTPUTS if o != "momentum")
+    methods = EXAMPLE_METHODS if applicable else tuple(m for m in EXAMPLE_METHODS if m != "symplectic_euler")
+    system = reduce_expressions(eom, outputs)
     sample = sample_state(eom)
     files = {}
     for precision, suffix in (("double", ""), ("float", "_f32")):
-        sources = render_sources(system, precision, model_name=name + suffix, methods=EXAMPLE_METHODS)
+        sources = render_sources(system, precision, model_name=name + suffix, methods=methods)
         files[sources.header_name] = sources.header
         files[sources.source_name] = sources.source
         files[f"test_{sources.layout.prefix}.c"] = _c_test(sources, sample, precision)

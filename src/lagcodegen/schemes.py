@@ -2,10 +2,11 @@
 
 Runge-Kutta methods are Butcher tableaux (`tableaux.TABLEAUX`): explicit ones run the generic
 explicit stepper, implicit ones the generic simplified-Newton stepper with the analytic
-Jacobian. The one non-RK scheme is semi-implicit (symplectic) Euler,
-``u+ = u + h ud(q, u)``, ``q+ = q + h K(q, u+)``: symplectic when M is constant (linear chains,
-oscillators; Hairer-Lubich-Wanner, Geometric Numerical Integration, Thm. VI.3.3), first order
-and merely semi-implicit when M depends on q.
+Jacobian. The one non-RK scheme is symplectic (semi-implicit) Euler in momentum form,
+p = M(q) u: ``M(q) v = p + h G(q, v)``, ``q+ = q + h v``, ``p+ = M(q) v`` with G = dL/dq + Q
+(Hairer-Lubich-Wanner, Geometric Numerical Integration, Thm. VI.3.3): symplectic for any M(q);
+for constant M it reduces to ``u+ = u + h ud(q, u)``, ``q+ = q + h u+``. It needs
+T = 1/2 u^T M(q) u (`cse.momentum_obstacle` says when a model does not qualify).
 """
 from __future__ import annotations
 
@@ -27,7 +28,7 @@ class SymplecticEuler:
 
     name: str = "symplectic_euler"
     order: int = 1
-    title: str = "semi-implicit (symplectic) Euler"
+    title: str = "symplectic (semi-implicit) Euler, momentum form"
 
     @property
     def kind(self) -> str:

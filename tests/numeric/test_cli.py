@@ -1,4 +1,5 @@
-"""``lagcodegen simulate`` and ``lagcodegen sweep``: files written, values, and errors.
+"""``lagcodegen simulate`` and ``lagcodegen sweep``: files written, values, and errors; and the
+`lagcodegen.heatmap` helpers behind ``--heatmap`` on synthetic sweeps with known answers.
 
 The commands run in-process through ``lagcodegen.cli.main`` on tiny problems (the kernels
 build into the session's private cache). Independent sources for the numbers:
@@ -20,8 +21,10 @@ import pytest
 
 from lagcodegen import catalog
 from lagcodegen.cli import main, parse_axis
+from lagcodegen.heatmap import first_crossing_time, plot_heatmap
 from lagcodegen.pipeline import compile_model
 from lagcodegen.simulate import Status, solve_reference
+from lagcodegen.sweep import SweepResult
 
 pytestmark = pytest.mark.compiler
 
@@ -113,6 +116,11 @@ def test_help_documents_grid_syntax_and_examples(capsys):
     with pytest.raises(SystemExit):
         main(["simulate", "--help"])
     assert "--energy" in capsys.readouterr().out
+
+
+def test_existing_commands_still_work(capsys):
+    code, text = run_cli(["examples"], capsys)
+    assert code == 0 and "double_pendulum" in text and "elastic_pendulum" in text
 
 
 # -- simulate ---------------------------------------------------------------------------------
@@ -208,3 +216,45 @@ def test_sweep_on_a_dask_scheduler(tmp_path, capsys):
              "--out", local], capsys)
     # same C function on the same inputs: bitwise equal to the local-thread run
     np.testing.assert_array_equal(np.load(out)["x_final"], np.load(local)["x_final"])
+
+
+# -- the heatmap helpers behind --heatmap -----------------------------------------------------
+def synthetic_sweep(status, q_max, trajectories=None, t=None) -> SweepResult:
+    """A 2 x 3 grid over (a, b) with given per-member status and q_max; one coordinate q."""
+    n = len(status)
+    return SweepResult(
+        columns=("a", "b"), values=np.array(list(itertools.product([1.0, 2.0], [10.0, 20.0, 30.0]))),
+        grid=(np.array([1.0, 2.0]), np.array([10.0, 20.0, 30.0])), x_final=np.zeros((n, 2)),
+        q_max=np.asarray(q_max, dtype=float).reshape(n, 1), energy_error=np.zeros(n),
+        status=np.asarray(status), steps_done=np.zeros(n, int), blowup_time=np.full(n, np.nan), t=t,
+        trajectories=trajectories, state_names=("q", "q_d"), coordinate_names=("q",), completed=True)
+
+
+def test_first_crossing_time_interpolates_and_flags_missed_excursions():
+    # q(t) = c t on t = 0, 0.1, ..., 1: crossing pi exactly at t = pi / c (linear, so the
+    # interpolation is exact); c = 1 never crosses; the last member's q_max says it crossed
+    # between samples, which the samples cannot time
+    t = np.linspace(0.0, 1.0, 11)
+    slopes = np.array([1.0, 4.0, 10.0, 2 * np.pi, 5.0, 1.0])
+    traj = np.zeros((6, 11, 2))
+    traj[:, :, 0] = -slopes[:, None] * t  # sign does not matter: |q|
+    q_max = slopes.copy()
+    q_max[-1] = 4.0
+    result = synthetic_sweep([0] * 6, q_max, traj, t)
+    with pytest.warns(RuntimeWarning, match="1 member"):
+        got = first_crossing_time(result, ("q",), np.pi)
+    want = np.array([np.nan, np.pi / 4, np.pi / 10, 0.5, np.pi / 5, np.nan])
+    np.testing.assert_allclose(got, want, rtol=1e-12)
+
+
+def test_heatmap_greys_and_counts_failed_members():
+    status = [0, 2, 0, 0, 1, 0]
+    fig = plot_heatmap(synthetic_sweep(status, np.arange(6.0)), "q_max")
+    ax = fig.axes[0]
+    assert "2 of 6 members failed" in ax.get_title()
+    assert (ax.get_xlabel(), ax.get_ylabel()) == ("b", "a")  # x = second column, y = first
+    values = ax.collections[0].get_array()  # C order over (a, b) = the members' order
+    np.testing.assert_array_equal(np.ma.getmaskarray(values).ravel(), np.array(status) != 0)
+    np.testing.assert_array_equal(values.compressed(), [0.0, 2.0, 3.0, 5.0])
+    assert fig.axes[1].get_ylabel() == "max |q| over the run"  # the colorbar
+    assert any("failed (status != ok): 2" in text.get_text() for text in fig.legends[0].get_texts())
