@@ -88,7 +88,8 @@ def main(argv=None) -> None:
     print(f"{result.n_members} members x {n_steps} rk4 steps in {elapsed:.1f} s "
           f"({result.n_members * n_steps / elapsed / 1e6:.1f} M steps/s); "
           f"{int(np.sum(result.status != 0))} failed")
-    energy0 = 0.5 * table["k"] * (STRETCH * (table["l0"] + M * G / table["k"])) ** 2 + M * G * table["r"] * (1 - np.cos(PHI0))
+    r0 = table["l0"] + M * G / table["k"]
+    energy0 = table["k"] * (STRETCH * r0) ** 2 / 2 + M * G * table["r"] * (1 - np.cos(PHI0))
     print(f"max |E - E0| / (energy above the rest state): {np.nanmax(result.energy_error / energy0):.1e}")
     ridge_report(result)
 

@@ -6,6 +6,7 @@ defines ``model`` (a `Model`) or a function ``build_model()`` returning one.
 from __future__ import annotations
 
 import argparse
+import math
 import runpy
 import sys
 import time
@@ -145,7 +146,8 @@ def parse_axis(item: str) -> tuple[str, "np.ndarray"]:
         try:
             return name, np.array([float(v) for v in spec.split(",") if v.strip()] or [], dtype=float)
         except ValueError:
-            raise SystemExit(f"lagcodegen: --grid {name!r}: {spec!r} is not a comma-separated list of numbers") from None
+            raise SystemExit(f"lagcodegen: --grid {name!r}: {spec!r} is not a comma-separated list "
+                             "of numbers") from None
     parts = [part.strip() for part in spec.split(":")]
     log = parts[-1].lower() == "log"
     numbers = parts[:-1] if log else parts
@@ -159,7 +161,8 @@ def parse_axis(item: str) -> tuple[str, "np.ndarray"]:
     if count < 1:
         raise SystemExit(f"lagcodegen: --grid {name!r}: count must be at least 1, got {count}")
     if log and not (start > 0 and stop > 0):
-        raise SystemExit(f"lagcodegen: --grid {name!r}: a log axis needs positive start and stop, got {start:g}:{stop:g}")
+        raise SystemExit(f"lagcodegen: --grid {name!r}: a log axis needs positive start and stop, "
+                         f"got {start:g}:{stop:g}")
     return name, (np.geomspace if log else np.linspace)(start, stop, count)
 
 
@@ -352,7 +355,8 @@ def connect(address: str):
     try:
         from dask.distributed import Client
     except ImportError:
-        raise SystemExit("lagcodegen sweep: --scheduler needs dask.distributed (pip install 'lagcodegen[dask]')") from None
+        raise SystemExit("lagcodegen sweep: --scheduler needs dask.distributed "
+                         "(pip install 'lagcodegen[dask]')") from None
     try:
         return Client(address, timeout="10s")
     except (OSError, TimeoutError) as error:
@@ -390,16 +394,15 @@ def print_sweep_summary(result, field: str, elapsed: float, compile_time: float,
     axes = ", ".join(f"{name} ({len(axis)} values {axis.min():g}..{axis.max():g})"
                      for name, axis in zip(result.columns, result.grid or ())) or ", ".join(result.columns)
     print(f"swept {axes}: {result.n_members} members x {steps} {method} steps in {elapsed:.2f} s "
-          f"({result.n_members * steps / max(elapsed, 1e-12) / 1e6:.2f} M member-steps/s; compile {compile_time:.2f} s)")
+          f"({result.n_members * steps / max(elapsed, 1e-12) / 1e6:.2f} M member-steps/s; "
+          f"compile {compile_time:.2f} s)")
     codes, counts = np.unique(result.status, return_counts=True)
     names = {NOT_RUN: "not_run", **{int(s): s.name.lower() for s in Status}}
     print("status: " + ", ".join(f"{names.get(int(c), c)} {n}" for c, n in zip(codes, counts)))
-    failed = np.isfinite(result.blowup_time)
-    if failed.any():
-        print(f"earliest failure at t = {np.nanmin(result.blowup_time):.6g} (member "
-              f"{int(np.nanargmin(result.blowup_time))}: "
-              + ", ".join(f"{c} = {v:g}" for c, v in zip(result.columns, result.values[np.nanargmin(result.blowup_time)]))
-              + ")")
+    if np.isfinite(result.blowup_time).any():
+        first = int(np.nanargmin(result.blowup_time))
+        where = ", ".join(f"{c} = {v:g}" for c, v in zip(result.columns, result.values[first]))
+        print(f"earliest failure at t = {result.blowup_time[first]:.6g} (member {first}: {where})")
     ok = result.status == Status.OK
     values, label = field_values(result, field)
     finite = values[np.isfinite(values) & (ok | (field in ("blowup_time", "steps_done")))]
@@ -422,6 +425,12 @@ def cmd_sweep(args) -> int:
         if name in [q.name for q in eom.q]:
             x0.setdefault(name, float(members[name][0]))
     field = check_sweep_outputs(args, members, eom)
+    if args.trajectories:
+        n_members = math.prod(len(v) for v in members.values()) if args.grid else len(next(iter(members.values())))
+        size = n_members * (round(args.t_end / args.h) // args.stride + 1) * 2 * eom.n * 8
+        if size > 2 ** 30:
+            print(f"lagcodegen sweep: warning: --trajectories will hold {size / 2 ** 30:.1f} GiB "
+                  "(raise --stride to keep fewer samples)", file=sys.stderr)
     start = time.perf_counter()
     system = compile_for(eom, args.method, fixed, energy=True, points=False)
     compile_time = time.perf_counter() - start

@@ -281,7 +281,9 @@ class _GroupedSum:
 
     def add(self, index, coefficient, expr) -> None:
         terms = self.entries.setdefault(index, {})
-        for term in sp.Add.make_args(sp.expand_mul(expr)):
+        if expr.is_Add or any(factor.is_Add for factor in sp.Mul.make_args(expr)):
+            expr = sp.expand_mul(expr)
+        for term in sp.Add.make_args(expr):
             coeff, rest = term.as_coeff_Mul()
             terms.setdefault(rest, []).append(coeff * coefficient)
 
@@ -338,6 +340,18 @@ def merge_pythagorean(terms: list) -> list:
     return terms
 
 
+def components(vector, frame) -> sp.Matrix:
+    """Components (3, 1) of a sympy.physics.vector Vector in ``frame``.
+
+    Vector.to_matrix takes three dot products through the frames' bases; summing each stored
+    (measure, frame) part rotated by the cached direction cosine matrix is cheaper.
+    """
+    total = sp.zeros(3, 1)
+    for measure, part in vector.args:
+        total += measure if part == frame else frame.dcm(part) * measure
+    return total
+
+
 @dataclass(frozen=True)
 class _TermMotion:
     """Kinematics of one additive term s(q, t) of a position component."""
@@ -368,7 +382,7 @@ def _derive_from_bodies(model: Model) -> EquationsOfMotion:
     q, u = plain_symbols(coords, speeds, model.parameters)
     to_plain = make_substitution(coords, speeds, q, u, "model")
     N, O, t, n = model.frame, model.origin, TIME, len(q)
-    gravity = to_plain(model.gravity.to_matrix(N), "gravity") if model.gravity is not None else sp.zeros(3, 1)
+    gravity = to_plain(components(model.gravity, N), "gravity") if model.gravity is not None else sp.zeros(3, 1)
 
     pair_mass: dict = {}   # ((component, s), (component, s')) -> masses of bodies holding both terms
     term_mass: dict = {}   # (component, s) -> masses of bodies holding s
@@ -376,7 +390,7 @@ def _derive_from_bodies(model: Model) -> EquationsOfMotion:
     T = []
     for body in model.bodies:
         m = to_plain(body.mass, f"mass of {body.name}")
-        r = to_plain(body.masscenter.pos_from(O).to_matrix(N), f"position of {body.name}")
+        r = to_plain(components(body.masscenter.pos_from(O), N), f"position of {body.name}")
         terms = [(c, s) for c in range(3) for s in sp.Add.make_args(r[c]) if s != 0]
         for a in terms:
             term_mass.setdefault(a, []).append(m)
@@ -424,7 +438,7 @@ def _derive_from_bodies(model: Model) -> EquationsOfMotion:
 
 def _add_rotation(body, M_sum, F_sum, T, to_plain, N, q, u, t) -> None:
     B = body.frame
-    w = to_plain(B.ang_vel_in(N).to_matrix(B), f"angular velocity of {body.name}")
+    w = to_plain(components(B.ang_vel_in(N), B), f"angular velocity of {body.name}")
     I = to_plain(body.central_inertia.to_matrix(B), f"inertia of {body.name}")
     Jw = w.jacobian(u)
     alpha0 = w.jacobian(q) * sp.Matrix(u) + w.diff(t)
@@ -442,13 +456,13 @@ def _add_rotation(body, M_sum, F_sum, T, to_plain, N, q, u, t) -> None:
 def _add_load(load, F_sum, to_plain, N, O, q, u) -> None:
     if load.is_torque:
         B = load.where
-        w = to_plain(B.ang_vel_in(N).to_matrix(B), f"angular velocity of frame {B}")
+        w = to_plain(components(B.ang_vel_in(N), B), f"angular velocity of frame {B}")
         J = w.jacobian(u)
-        f = to_plain(load.vector.to_matrix(B), f"torque on {B}")
+        f = to_plain(components(load.vector, B), f"torque on {B}")
     else:
-        r = to_plain(load.where.pos_from(O).to_matrix(N), f"position of point {load.where}")
+        r = to_plain(components(load.where.pos_from(O), N), f"position of point {load.where}")
         J = r.jacobian(q)
-        f = to_plain(load.vector.to_matrix(N), f"force on {load.where}")
+        f = to_plain(components(load.vector, N), f"force on {load.where}")
     for j in range(len(q)):
         F_sum.add_dot(j, 1, J[:, j], f)
 
@@ -459,7 +473,7 @@ def _assemble(model, coords, speeds, q, u, M, F, K, T, V, to_plain) -> Equations
     points = []
     for name, where in model.points.items():
         if isinstance(where, me.Point):
-            pos = where.pos_from(model.origin).to_matrix(model.frame)
+            pos = components(where.pos_from(model.origin), model.frame)
         else:
             pos = sp.Matrix(list(where) + [0] * (3 - len(where)))  # planar points get z = 0
         points.append((name, sp.ImmutableMatrix(to_plain(pos, f"point {name!r}"))))

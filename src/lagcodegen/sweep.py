@@ -130,6 +130,8 @@ def member_arrays(system: CompiledSystem, columns, values, x0, params):
     if bad:
         raise ValueError(f"swept values of {', '.join(bad)} are not all finite")
     dtype = _dtype(system)
+    if isinstance(x0, Mapping):  # swept state variables need no base value
+        x0 = {**{name: 0.0 for name in columns if name in state_names}, **x0}
     base_x = initial_state(system, x0)
     base_p = parameter_vector(system, params)
     xs = np.repeat(base_x[None, :], len(values), axis=0)
