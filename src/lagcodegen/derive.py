@@ -32,6 +32,7 @@ import sympy.physics.mechanics as me
 from sympy.core.function import AppliedUndef
 
 from .model import TIME, Model, ModelError, ROUTE_BODIES, ROUTE_ENERGIES, check_declared
+from .grouping import GroupedSum, components, sparse_diff
 from .quadratic import NotQuadratic, quadratic_terms
 
 ROUTE_TITLES = {
@@ -174,7 +175,7 @@ def _derive_from_energies(model: Model) -> EquationsOfMotion:
 def _quadratic_form(T, q, u, parameters):
     """M (n, n), b (n) and T0 of T = 1/2 u^T M u + b^T u + T0, with shared products grouped."""
     n = len(u)
-    M_sum, b, T0 = _GroupedSum(), [[] for _ in range(n)], []
+    M_sum, b, T0 = GroupedSum(), [[] for _ in range(n)], []
     for key, weight, expr in quadratic_terms(T, u, parameters):
         number, weight = weight.as_coeff_Mul()
         if len(key) == 2:
@@ -226,19 +227,6 @@ def _lagrange_forcing(M, b, T0, q, u) -> sp.Matrix:
     return F
 
 
-def sparse_diff(expr, x):
-    """d expr / dx, applying the sum and product rules only to the parts that contain x."""
-    if x not in expr.free_symbols:
-        return sp.S.Zero
-    if expr.is_Add:
-        return sp.Add(*[sparse_diff(arg, x) for arg in expr.args])
-    if expr.is_Mul:
-        args = expr.args
-        return sp.Add(*[sp.Mul(*args[:i], sparse_diff(f, x), *args[i + 1:])
-                        for i, f in enumerate(args) if x in f.free_symbols])
-    return expr.diff(x)
-
-
 def _hessian_form(T, q, u):
     """M = d2T/du2 and F = dT/dq - (dp/dq) u - dp/dt, p = dT/du: the general, slower route."""
     n, t = len(u), TIME
@@ -269,89 +257,6 @@ def _check_mass_matrix(M: sp.Matrix, coords, u) -> None:
 
 
 # -- d'Alembert-Lagrange ----------------------------------------------------------------------
-class _GroupedSum:
-    """Per-entry sums of ``coefficient * term``, grouping equal terms and equal coefficients.
-
-    Summing m_i * X over bodies i that share the product X yields (m_a + m_b + ...) * X:
-    one product instead of one per body, before any CSE.
-    """
-
-    def __init__(self):
-        self.entries: dict = {}
-
-    def add(self, index, coefficient, expr) -> None:
-        terms = self.entries.setdefault(index, {})
-        if expr.is_Add or any(factor.is_Add for factor in sp.Mul.make_args(expr)):
-            expr = sp.expand_mul(expr)
-        for term in sp.Add.make_args(expr):
-            coeff, rest = term.as_coeff_Mul()
-            terms.setdefault(rest, []).append(coeff * coefficient)
-
-    def add_dot(self, index, coefficient, a, b) -> None:
-        """Add coefficient * a.b for column vectors a, b."""
-        for ai, bi in zip(a, b):
-            if ai != 0 and bi != 0:
-                self.add(index, coefficient, ai * bi)
-
-    def value(self, index):
-        terms = self.entries.get(index, {})
-        for _ in range(2):  # a Pythagorean merge can produce a term that already exists
-            regrouped: dict = {}
-            for coefficient, group in _by_coefficient(terms).items():
-                for term in merge_pythagorean(group):
-                    coeff, rest = term.as_coeff_Mul()
-                    regrouped.setdefault(rest, []).append(coeff * coefficient)
-            terms = regrouped
-        return sp.Add(*[c * sp.Add(*group) for c, group in _by_coefficient(terms).items()])
-
-
-def _by_coefficient(terms: dict) -> dict:
-    grouped: dict = {}
-    for term, coefficients in terms.items():
-        coefficient = sp.factor_terms(sp.Add(*coefficients)) if len(coefficients) > 1 else coefficients[0]
-        if coefficient.could_extract_minus_sign():  # -m * X and m * Y share the group m * (Y - X)
-            coefficient, term = -coefficient, -term
-        if coefficient != 0:
-            grouped.setdefault(coefficient, []).append(term)
-    return grouped
-
-
-def merge_pythagorean(terms: list) -> list:
-    """Replace each pair c*sin(x)**2, c*cos(x)**2 in ``terms`` by c (exact, cheap, no trigsimp)."""
-    terms = list(terms)
-    changed = True
-    while changed:
-        changed = False
-        seen: dict = {}
-        for i, term in enumerate(terms):
-            for factor in sp.Mul.make_args(term):
-                if factor.is_Pow and factor.exp == 2 and isinstance(factor.base, (sp.sin, sp.cos)):
-                    rest = term / factor
-                    key = (rest, factor.base.args[0])
-                    partner = seen.get((key, sp.cos if isinstance(factor.base, sp.sin) else sp.sin))
-                    if partner is not None:
-                        terms[partner], terms[i] = rest, sp.S.Zero
-                        changed = True
-                        break
-                    seen[(key, type(factor.base))] = i
-            if changed:
-                break
-        terms = [t for t in terms if t != 0]
-    return terms
-
-
-def components(vector, frame) -> sp.Matrix:
-    """Components (3, 1) of a sympy.physics.vector Vector in ``frame``.
-
-    Vector.to_matrix takes three dot products through the frames' bases; summing each stored
-    (measure, frame) part rotated by the cached direction cosine matrix is cheaper.
-    """
-    total = sp.zeros(3, 1)
-    for measure, part in vector.args:
-        total += measure if part == frame else frame.dcm(part) * measure
-    return total
-
-
 @dataclass(frozen=True)
 class _TermMotion:
     """Kinematics of one additive term s(q, t) of a position component."""
@@ -386,7 +291,7 @@ def _derive_from_bodies(model: Model) -> EquationsOfMotion:
 
     pair_mass: dict = {}   # ((component, s), (component, s')) -> masses of bodies holding both terms
     term_mass: dict = {}   # (component, s) -> masses of bodies holding s
-    M_sum, F_sum = _GroupedSum(), _GroupedSum()
+    M_sum, F_sum = GroupedSum(), GroupedSum()
     T = []
     for body in model.bodies:
         m = to_plain(body.mass, f"mass of {body.name}")

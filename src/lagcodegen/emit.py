@@ -4,7 +4,21 @@ The printer writes the maths; Jinja2 templates in ``templates/`` write the layou
 """
 from __future__ import annotations
 
+import hashlib
 from dataclasses import dataclass
+from pathlib import Path
+
+import jinja2
+import sympy as sp
+
+from .csyntax import EmitError, comment_text, literal, record
+from .cse import OUTPUT_KERNELS, ReducedKernel, ReducedSystem
+from .ldlt import ldlt_factor_lines, ldlt_solve_lines, ldlt_substitution_lines
+from .model import TIME
+from .printer import CPrinter, mangle
+from .stepper_context import stepper_context
+
+__all__ = ["CSources", "EmitError", "KernelLayout", "render_sources", "template_dir", "comment_text"]
 
 
 @dataclass(frozen=True)
@@ -64,18 +78,6 @@ class CSources:
     cdef: str
 
 
-# ---------------------------------------------------------------------------------------------
-# Rendering
-# ---------------------------------------------------------------------------------------------
-import hashlib  # noqa: E402  (kept beside the code that uses it)
-from pathlib import Path  # noqa: E402
-
-import jinja2  # noqa: E402
-import sympy as sp  # noqa: E402
-
-from .cse import ReducedKernel, ReducedSystem  # noqa: E402
-from .model import TIME  # noqa: E402
-from .printer import CPrinter, mangle  # noqa: E402
 
 PRECISIONS = ("double", "float")
 STATUS_CODES = (
@@ -85,16 +87,9 @@ STATUS_CODES = (
     ("LCG_NEWTON_FAILED", 3, "an implicit step's Newton iteration did not converge"),
     ("LCG_UNKNOWN_METHOD", 4, "the method number is not compiled into this kernel"),
 )
-#: simplified-Newton stopping rule of the implicit steppers: max |dW| / (1 + |x|) per precision
-NEWTON_TOLERANCE = {"double": 1e-13, "float": 1e-5}
-NEWTON_MAX_ITERATIONS = 30
 #: local names the generated code uses itself; user symbols are renamed around them
 _RESERVED = {"t", "x", "p", "out", "M", "F", "ud", "qd", "xdot", "B", "J", "c", "status", "work", "h",
              "i", "j", "k", "m", "s", "method", "stride", "n_steps", "steps_done"}
-
-
-class EmitError(ValueError):
-    """The kernels cannot be written as C; the message names the culprit."""
 
 
 def template_dir() -> Path:
@@ -103,12 +98,6 @@ def template_dir() -> Path:
     if installed.is_dir():
         return installed
     return Path(__file__).resolve().parents[2] / "templates"
-
-
-def comment_text(text: str) -> str:
-    """``text`` made safe inside a C block comment: no ``*/``, no ``/*``, one line."""
-    return (str(text).replace("*/", "*\\/").replace("/*", "/\\*")
-            .replace("\\n", "\\\\n").replace("\n", "\\n").replace("\r", "\\r"))
 
 
 def _environment() -> jinja2.Environment:
@@ -180,7 +169,7 @@ def render_sources(system: ReducedSystem, precision: str = "double", model_name:
         functions.append(_dynamics_record(system, names, printer, real))
     functions += [_function_record(system, system.kernel(_kernel_of(out)), names, printer, real, out)
                   for out in system.outputs]
-    steppers = _stepper_context(system, names, real, list(methods))
+    steppers = stepper_context(system, names, real, list(methods))
     stepper_prototypes = steppers.pop("exported")
     layout = _layout(system, names, real, model_name, functions + stepper_prototypes,
                      tuple(m["name"] for m in steppers["methods"]))
@@ -198,13 +187,7 @@ def render_sources(system: ReducedSystem, precision: str = "double", model_name:
 
 
 def _kernel_of(output: str) -> str:
-    from .cse import OUTPUT_KERNELS
     return OUTPUT_KERNELS[output]
-
-
-def _literal(value: float | int, real: str) -> str:
-    text = repr(float(value))
-    return text + "F" if real == "float" else text
 
 
 def _input_lines(kernel: ReducedKernel, names: _Names, real: str) -> tuple[list, list]:
@@ -264,33 +247,33 @@ def _function_record(system, kernel, names, printer, real, output):
             body.append(f"M[{j * n + k}] = {_print(printer, expr, f'M[{j}][{k}]')};  /* M[{j}][{k}] */")
             if j != k:
                 body.append(f"M[{k * n + j}] = M[{j * n + k}];  /* M[{k}][{j}] */")
-        return _record(f"void {prefix}_mass_matrix({args}, {real} *M)",
+        return record(f"void {prefix}_mass_matrix({args}, {real} *M)",
                        f"Mass matrix M(q, t), row-major {n} x {n}.", body)
     if output == "forcing":
         body = _body_head(kernel, names, printer, real) + ["/* Forcing */"]
         for (j, _), expr in _results(kernel, "F").items():
             body.append(f"F[{j}] = {_print(printer, expr, f'F[{j}]')};")
-        return _record(f"void {prefix}_forcing({args}, {real} *F)", f"Forcing F(q, u, t), {n} values.", body)
+        return record(f"void {prefix}_forcing({args}, {real} *F)", f"Forcing F(q, u, t), {n} values.", body)
     if output == "accel":
         body = [f"{real} qd[{n}];", f"return {prefix}_dynamics(t, x, p, qd, ud);"]
-        return _record(f"int {prefix}_accel({args}, {real} *ud)",
+        return record(f"int {prefix}_accel({args}, {real} *ud)",
                        "Generalized accelerations ud solving M ud = F; returns a status code.", body)
     if output == "rhs":
         body = [f"return {prefix}_dynamics(t, x, p, xdot, xdot + {n});"]
-        return _record(f"int {prefix}_rhs({args}, {real} *xdot)",
+        return record(f"int {prefix}_rhs({args}, {real} *xdot)",
                        f"First-order right-hand side xdot = f(t, x), x = (q, u), {2 * n} values; "
                        "returns a status code. xdot must not alias x.", body)
     if output == "energy":
         body = _body_head(kernel, names, printer, real)
         body.append(f"return {_print(printer, _results(kernel, 'E')[(0, 0)], 'energy')};")
-        return _record(f"{real} {prefix}_energy({args})", "Total mechanical energy T + V.", body)
+        return record(f"{real} {prefix}_energy({args})", "Total mechanical energy T + V.", body)
     if output == "points":
         body = _body_head(kernel, names, printer, real) + ["/* Point positions (x, y, z) */"]
         for (i, c), expr in _results(kernel, "P").items():
             point = system.point_names[i]
             body.append(f"out[{3 * i + c}] = {_print(printer, expr, f'point {point}')};  "
                         f"/* {comment_text(point)}.{'xyz'[c]} */")
-        return _record(f"void {prefix}_points({args}, {real} *out)",
+        return record(f"void {prefix}_points({args}, {real} *out)",
                        f"Positions of {len(system.point_names)} named points, 3 values each.", body)
     if output == "jacobian":
         return _jacobian_record(system, kernel, names, printer, real)
@@ -302,13 +285,9 @@ def _function_record(system, kernel, names, printer, real, output):
                 body.append(f"M[{k * n + j}] = M[{j * n + k}];")
         body.append("/* G = dL/dq + Q */")
         body += [f"G[{j}] = {_print(printer, expr, f'G[{j}]')};" for (j, _), expr in _results(kernel, "G").items()]
-        return _record(f"void {prefix}_momentum({args}, {real} *M, {real} *G)",
+        return record(f"void {prefix}_momentum({args}, {real} *M, {real} *G)",
                        f"M(q) (row-major {n} x {n}) and G = dL/dq + Q, for symplectic Euler in p = M u.", body)
     raise EmitError(f"unknown output {output!r}")
-
-
-def _record(decl: str, doc: str, body: list, static: bool = False) -> dict:
-    return {"decl": ("static " if static else "") + decl, "doc": doc, "body": body, "static": static}
 
 
 def _dynamics_record(system, names, printer, real) -> dict:
@@ -332,57 +311,8 @@ def _dynamics_record(system, names, printer, real) -> dict:
                  for (j, _), expr in _results(kernel, "K").items()]
     body += ldlt_solve_lines(n, {jk for jk, e in M.items() if e != 0}, real, f"{prefix}_pivot_failure(x)")
     body.append("return LCG_OK;")
-    return _record(f"int {prefix}_dynamics({real} t, const {real} *x, const {real} *p, {real} *qd, {real} *ud)",
+    return record(f"int {prefix}_dynamics({real} t, const {real} *x, const {real} *p, {real} *qd, {real} *ud)",
                    "K, M and F with shared temporaries, then M ud = F by LDL^T.", body, static=True)
-
-
-def ldlt_solve_lines(n: int, nonzero: set, real: str, failure: str = "LCG_SINGULAR_MASS_MATRIX") -> list:
-    """Unrolled LDL^T factorization of M (locals M_j_k) and solve of M ud = F (locals F_j)."""
-    factor, LD = ldlt_factor_lines(n, nonzero, real, failure)
-    return factor + ldlt_substitution_lines(n, LD, real, lambda i: f"F_{i}", lambda i: f"ud[{i}]")
-
-
-def _minus_terms(pairs) -> str:
-    return "".join(f" - {a}*{b}" for a, b in pairs)
-
-
-def ldlt_factor_lines(n: int, nonzero: set, real: str, failure: str = "LCG_SINGULAR_MASS_MATRIX") -> tuple[list, set]:
-    """Unrolled LDL^T factorization of the symmetric M held in locals M_j_k (j >= k).
-
-    Structural zeros of M are skipped. A pivot that is not positive (or NaN) returns
-    LCG_SINGULAR_MASS_MATRIX, so a singular M never produces NaNs silently. Returns the lines
-    and the set of (i, k) whose L_i_k is nonzero.
-    """
-    zero, one = _literal(0, real), _literal(1, real)
-    lines = [f"/* Factor M = L D L^T: unrolled ({n} x {n}) */"]
-    LD: set = set()  # (i, k) with LD_i_k = L_i_k * D_k nonzero
-    for j in range(n):
-        pivot = _minus_terms((f"L_{j}_{k}", f"LD_{j}_{k}") for k in range(j) if (j, k) in LD)
-        lines.append(f"const {real} D_{j} = M_{j}_{j}{pivot};")
-        lines.append(f"if (!(D_{j} > {zero})) return {failure};")
-        lines.append(f"const {real} Dinv_{j} = {one} / D_{j};")
-        for i in range(j + 1, n):
-            pairs = [(f"LD_{i}_{k}", f"L_{j}_{k}") for k in range(j) if (i, k) in LD and (j, k) in LD]
-            if (i, j) not in nonzero and not pairs:
-                continue
-            head = f"M_{i}_{j}" if (i, j) in nonzero else zero
-            lines.append(f"const {real} LD_{i}_{j} = {head}{_minus_terms(pairs)};")
-            lines.append(f"const {real} L_{i}_{j} = LD_{i}_{j} * Dinv_{j};")
-            LD.add((i, j))
-    return lines, LD
-
-
-def ldlt_substitution_lines(n: int, LD: set, real: str, rhs, out) -> list:
-    """Forward, diagonal and backward substitution with the factors; rhs(i), out(i) name C lvalues."""
-    lines = ["/* Substitute: L y = b, D z = y, L^T w = z */"]
-    for i in range(n):
-        lower = _minus_terms((f"L_{i}_{k}", f"y_{k}") for k in range(i) if (i, k) in LD)
-        lines.append(f"const {real} y_{i} = {rhs(i)}{lower};")
-    for i in reversed(range(n)):
-        back = _minus_terms((f"L_{k}_{i}", f"w_{k}") for k in range(i + 1, n) if (k, i) in LD)
-        lines.append(f"const {real} w_{i} = y_{i} * Dinv_{i}{back};")
-        lines.append(f"{out(i)} = w_{i};")
-    return lines
 
 
 def _jacobian_record(system, kernel, names, printer, real) -> dict:
@@ -400,7 +330,7 @@ def _jacobian_record(system, kernel, names, printer, real) -> dict:
             body.append(f"const {real} M_{j}_{k} = {_print(printer, expr, f'M[{j}][{k}]')};")
     body.append("/* B = -dG/dx, G = M ud - F */")
     for (j, c), expr in _results(kernel, "G").items():
-        value = f"-({_print(printer, expr, f'dG[{j}]/dx[{c}]')})" if expr != 0 else _literal(0, real)
+        value = f"-({_print(printer, expr, f'dG[{j}]/dx[{c}]')})" if expr != 0 else literal(0, real)
         body.append(f"B[{j}][{c}] = {value};")
     body.append("/* Kinematic rows dK/dx */")
     DK = _results(kernel, "DK")
@@ -409,7 +339,7 @@ def _jacobian_record(system, kernel, names, printer, real) -> dict:
             if DK:
                 value = _print(printer, DK[(j, c)], f"dK[{j}]/dx[{c}]")
             else:
-                value = _literal(1 if c == n + j else 0, real)
+                value = literal(1 if c == n + j else 0, real)
             body.append(f"J[{j * size + c}] = {value};")
     factor, LD = ldlt_factor_lines(n, {jk for jk, e in M.items() if e != 0}, real, f"{prefix}_pivot_failure(x)")
     body += factor
@@ -418,7 +348,7 @@ def _jacobian_record(system, kernel, names, printer, real) -> dict:
                                     lambda i: f"J[{(n + i) * size} + c]")
     body += ["    " + line for line in solve]
     body += ["}", "return LCG_OK;"]
-    return _record(f"int {prefix}_jacobian({real} t, const {real} *x, const {real} *p, {real} *J)",
+    return record(f"int {prefix}_jacobian({real} t, const {real} *x, const {real} *p, {real} *J)",
                    f"Jacobian df/dx of the first-order right-hand side, row-major {size} x {size}; "
                    "returns a status code.", body)
 
@@ -462,74 +392,3 @@ def _context(system: ReducedSystem, names: _Names, layout: KernelLayout, functio
     }
 
 
-def _stepper_context(system: ReducedSystem, names: _Names, real: str, methods: list) -> dict:
-    """Template context of the integrators: coefficient tables, step functions, the driver."""
-    from .schemes import KIND_EXPLICIT, KIND_IMPLICIT, get_scheme, scheme_kind
-
-    n, prefix = len(system.q), names.prefix
-    N = 2 * n
-    points = len(system.point_names) if "points" in system.outputs else 0
-    context = {"has_steppers": bool(methods), "tableaux": [], "methods": [], "exported": [],
-               "has_explicit": False, "has_implicit": False, "has_symplectic_euler": False,
-               "identity_kinematics": system.kinematics_identity, "zero": _literal(0, real),
-               "one": _literal(1, real), "fsuffix": "f" if real == "float" else "",
-               "newton_tolerance": _literal(NEWTON_TOLERANCE[real], real), "newton_max": NEWTON_MAX_ITERATIONS,
-               "n_state_squared": N * N, "n_squared": n * n, "se_work": 3 * n * n + 5 * n + N, "has_energy": "energy" in system.outputs, "has_points": points > 0,
-               "n_point_values": 3 * points, "work_size": N, "method_rows": []}
-    if not methods:
-        return context
-    if "rhs" not in system.outputs and "accel" not in system.outputs:
-        raise EmitError("integrators need the 'rhs' output; add it to outputs")
-    for number, name in enumerate(dict.fromkeys(methods)):
-        scheme = get_scheme(name)
-        kind = scheme_kind(scheme)
-        if kind == KIND_IMPLICIT and "jacobian" not in system.outputs:
-            raise EmitError(f"method {name!r} is implicit and needs the 'jacobian' output; add it to outputs")
-        record = {"name": scheme.name, "id": number, "title": scheme.title or scheme.name, "order": scheme.order}
-        if kind in (KIND_EXPLICIT, KIND_IMPLICIT):
-            context["tableaux"].append(_tableau_record(scheme, real))
-            s = scheme.stages
-            stepper = "erk_step" if kind == KIND_EXPLICIT else "irk_step"
-            arrays = f"{prefix}_{scheme.name}_a, {prefix}_{scheme.name}_b, {prefix}_{scheme.name}_c"
-            record["work"] = (s + 1) * N if kind == KIND_EXPLICIT else 3 * s * N + (s * N) ** 2 + N * N + N
-            record["call"] = f"{prefix}_{stepper}({s}, {arrays}, *t, x, p, h, work)"
-            record["call_in_driver"] = f"{prefix}_{stepper}({s}, {arrays}, t, x, p, h, scratch)"
-            context["has_explicit" if kind == KIND_EXPLICIT else "has_implicit"] = True
-        else:
-            if "momentum" not in system.outputs:
-                raise EmitError(f"method {name!r} needs the 'momentum' output; add it to outputs")
-            record["work"] = 3 * n * n + 5 * n + N
-            record["call"] = f"{prefix}_symplectic_euler_step(*t, x, p, h, work)"
-            record["call_in_driver"] = f"{prefix}_symplectic_euler_step(t, x, p, h, scratch)"
-            context["has_symplectic_euler"] = True
-        context["methods"].append(record)
-        context["method_rows"].append({"macro": f"{prefix.upper()}_METHOD_{scheme.name.upper()}", "id": number,
-                                       "work_macro": f"{prefix.upper()}_WORK_{scheme.name.upper()}",
-                                       "work": record["work"]})
-        context["exported"].append(_record(
-            f"int {prefix}_step_{scheme.name}({real} *t, {real} *x, const {real} *p, {real} h, {real} *work)",
-            f"One step of {record['title']} (order {scheme.order}); work holds {record['work']} values.", []))
-    context["work_size"] = N + max(m["work"] for m in context["methods"])
-    decl = (f"int {prefix}_simulate(int method, {real} t0, const {real} *x0, const {real} *p, {real} h, "
-            f"long n_steps, long stride, {real} *t_out, {real} *x_out, {real} *energy_out, "
-            f"{real} *points_out, {real} *work, long *steps_done)")
-    context["simulate_decl"] = decl
-    context["exported"].append(_record(decl, "Fixed-step integration loop; returns a status code.", []))
-    sweep = (f"void {prefix}_sweep(int method, long n_members, const {real} *x0s, const {real} *ps, {real} t0, "
-             f"{real} h, long n_steps, long stride, int track_energy, {real} *x_final, {real} *q_max, "
-             f"{real} *energy_error, int *status, long *steps_done, {real} *traj, {real} *work)")
-    context["sweep_decl"] = sweep
-    context["n_params_or_one"] = max(1, len(system.free_parameters))
-    context["exported"].append(_record(sweep, "Many independent members, one after another.", []))
-    return context
-
-
-def _tableau_record(scheme, real: str) -> dict:
-    s = scheme.stages
-    value = (lambda v: _literal(float(v), real))
-    rows = [{"entries": ", ".join(value(v) for v in row), "comment": ", ".join(str(v) for v in row)}
-            for row in scheme.a]
-    return {"name": scheme.name, "title": scheme.title or scheme.name, "order": scheme.order, "stages": s,
-            "stages_squared": s * s, "a_rows": rows,
-            "b_values": ", ".join(value(v) for v in scheme.b), "b_comment": ", ".join(map(str, scheme.b)),
-            "c_values": ", ".join(value(v) for v in scheme.c), "c_comment": ", ".join(map(str, scheme.c))}

@@ -1,0 +1,21 @@
+"""Helper: small pieces of C syntax shared by the emitters (literals, comments, records)."""
+from __future__ import annotations
+
+
+class EmitError(ValueError):
+    """The kernels cannot be written as C; the message names the culprit."""
+
+
+def literal(value: float | int, real: str) -> str:
+    text = repr(float(value))
+    return text + "F" if real == "float" else text
+
+
+def comment_text(text: str) -> str:
+    """``text`` made safe inside a C block comment: no ``*/``, no ``/*``, one line."""
+    return (str(text).replace("*/", "*\\/").replace("/*", "/\\*")
+            .replace("\\n", "\\\\n").replace("\n", "\\n").replace("\r", "\\r"))
+
+
+def record(decl: str, doc: str, body: list, static: bool = False) -> dict:
+    return {"decl": ("static " if static else "") + decl, "doc": doc, "body": body, "static": static}

@@ -1,0 +1,106 @@
+"""Helper: sums of many products, grouped before any CSE, and cheap exact rewrites.
+
+Deriving M and F of a multibody system sums m_i * (product of partial velocities) over bodies;
+`GroupedSum` merges equal products across bodies so that a chain's M_jk comes out as
+(m_k + ... + m_n) * (...), `merge_pythagorean` folds c sin^2 + c cos^2 into c, and
+`sparse_diff` and `components` avoid sympy's general machinery where the structure is known.
+"""
+from __future__ import annotations
+
+import sympy as sp
+
+
+class GroupedSum:
+    """Per-entry sums of ``coefficient * term``, grouping equal terms and equal coefficients.
+
+    Summing m_i * X over bodies i that share the product X yields (m_a + m_b + ...) * X:
+    one product instead of one per body, before any CSE.
+    """
+
+    def __init__(self):
+        self.entries: dict = {}
+
+    def add(self, index, coefficient, expr) -> None:
+        terms = self.entries.setdefault(index, {})
+        if expr.is_Add or any(factor.is_Add for factor in sp.Mul.make_args(expr)):
+            expr = sp.expand_mul(expr)
+        for term in sp.Add.make_args(expr):
+            coeff, rest = term.as_coeff_Mul()
+            terms.setdefault(rest, []).append(coeff * coefficient)
+
+    def add_dot(self, index, coefficient, a, b) -> None:
+        """Add coefficient * a.b for column vectors a, b."""
+        for ai, bi in zip(a, b):
+            if ai != 0 and bi != 0:
+                self.add(index, coefficient, ai * bi)
+
+    def value(self, index):
+        terms = self.entries.get(index, {})
+        for _ in range(2):  # a Pythagorean merge can produce a term that already exists
+            regrouped: dict = {}
+            for coefficient, group in _by_coefficient(terms).items():
+                for term in merge_pythagorean(group):
+                    coeff, rest = term.as_coeff_Mul()
+                    regrouped.setdefault(rest, []).append(coeff * coefficient)
+            terms = regrouped
+        return sp.Add(*[c * sp.Add(*group) for c, group in _by_coefficient(terms).items()])
+
+
+def _by_coefficient(terms: dict) -> dict:
+    grouped: dict = {}
+    for term, coefficients in terms.items():
+        coefficient = sp.factor_terms(sp.Add(*coefficients)) if len(coefficients) > 1 else coefficients[0]
+        if coefficient.could_extract_minus_sign():  # -m * X and m * Y share the group m * (Y - X)
+            coefficient, term = -coefficient, -term
+        if coefficient != 0:
+            grouped.setdefault(coefficient, []).append(term)
+    return grouped
+
+
+def merge_pythagorean(terms: list) -> list:
+    """Replace each pair c*sin(x)**2, c*cos(x)**2 in ``terms`` by c (exact, cheap, no trigsimp)."""
+    terms = list(terms)
+    changed = True
+    while changed:
+        changed = False
+        seen: dict = {}
+        for i, term in enumerate(terms):
+            for factor in sp.Mul.make_args(term):
+                if factor.is_Pow and factor.exp == 2 and isinstance(factor.base, (sp.sin, sp.cos)):
+                    rest = term / factor
+                    key = (rest, factor.base.args[0])
+                    partner = seen.get((key, sp.cos if isinstance(factor.base, sp.sin) else sp.sin))
+                    if partner is not None:
+                        terms[partner], terms[i] = rest, sp.S.Zero
+                        changed = True
+                        break
+                    seen[(key, type(factor.base))] = i
+            if changed:
+                break
+        terms = [t for t in terms if t != 0]
+    return terms
+
+
+def components(vector, frame) -> sp.Matrix:
+    """Components (3, 1) of a sympy.physics.vector Vector in ``frame``.
+
+    Vector.to_matrix takes three dot products through the frames' bases; summing each stored
+    (measure, frame) part rotated by the cached direction cosine matrix is cheaper.
+    """
+    total = sp.zeros(3, 1)
+    for measure, part in vector.args:
+        total += measure if part == frame else frame.dcm(part) * measure
+    return total
+
+
+def sparse_diff(expr, x):
+    """d expr / dx, applying the sum and product rules only to the parts that contain x."""
+    if x not in expr.free_symbols:
+        return sp.S.Zero
+    if expr.is_Add:
+        return sp.Add(*[sparse_diff(arg, x) for arg in expr.args])
+    if expr.is_Mul:
+        args = expr.args
+        return sp.Add(*[sp.Mul(*args[:i], sparse_diff(f, x), *args[i + 1:])
+                        for i, f in enumerate(args) if x in f.free_symbols])
+    return expr.diff(x)

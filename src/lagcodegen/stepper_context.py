@@ -1,0 +1,86 @@
+"""Helper: the template context of the integrators (coefficient tables, step functions, driver).
+
+Explicit Runge-Kutta methods run one generic stepper, implicit ones one simplified-Newton
+stepper, both reading the Butcher coefficients emitted as ``static const`` arrays; symplectic
+Euler has its own template code. See ``templates/steppers.c.j2``.
+"""
+from __future__ import annotations
+
+from .csyntax import EmitError, literal as _literal, record as _record
+
+#: simplified-Newton stopping rule of the implicit steppers: max |dW| / (1 + |x|) per precision
+NEWTON_TOLERANCE = {"double": 1e-13, "float": 1e-5}
+NEWTON_MAX_ITERATIONS = 30
+
+
+def stepper_context(system, names, real: str, methods: list) -> dict:
+    """Template context of the integrators: coefficient tables, step functions, the driver."""
+    from .schemes import KIND_EXPLICIT, KIND_IMPLICIT, get_scheme, scheme_kind
+
+    n, prefix = len(system.q), names.prefix
+    N = 2 * n
+    points = len(system.point_names) if "points" in system.outputs else 0
+    context = {"has_steppers": bool(methods), "tableaux": [], "methods": [], "exported": [],
+               "has_explicit": False, "has_implicit": False, "has_symplectic_euler": False,
+               "identity_kinematics": system.kinematics_identity, "zero": _literal(0, real),
+               "one": _literal(1, real), "fsuffix": "f" if real == "float" else "",
+               "newton_tolerance": _literal(NEWTON_TOLERANCE[real], real), "newton_max": NEWTON_MAX_ITERATIONS,
+               "n_state_squared": N * N, "n_squared": n * n, "se_work": 3 * n * n + 5 * n + N, "has_energy": "energy" in system.outputs, "has_points": points > 0,
+               "n_point_values": 3 * points, "work_size": N, "method_rows": []}
+    if not methods:
+        return context
+    if "rhs" not in system.outputs and "accel" not in system.outputs:
+        raise EmitError("integrators need the 'rhs' output; add it to outputs")
+    for number, name in enumerate(dict.fromkeys(methods)):
+        scheme = get_scheme(name)
+        kind = scheme_kind(scheme)
+        if kind == KIND_IMPLICIT and "jacobian" not in system.outputs:
+            raise EmitError(f"method {name!r} is implicit and needs the 'jacobian' output; add it to outputs")
+        record = {"name": scheme.name, "id": number, "title": scheme.title or scheme.name, "order": scheme.order}
+        if kind in (KIND_EXPLICIT, KIND_IMPLICIT):
+            context["tableaux"].append(_tableau_record(scheme, real))
+            s = scheme.stages
+            stepper = "erk_step" if kind == KIND_EXPLICIT else "irk_step"
+            arrays = f"{prefix}_{scheme.name}_a, {prefix}_{scheme.name}_b, {prefix}_{scheme.name}_c"
+            record["work"] = (s + 1) * N if kind == KIND_EXPLICIT else 3 * s * N + (s * N) ** 2 + N * N + N
+            record["call"] = f"{prefix}_{stepper}({s}, {arrays}, *t, x, p, h, work)"
+            record["call_in_driver"] = f"{prefix}_{stepper}({s}, {arrays}, t, x, p, h, scratch)"
+            context["has_explicit" if kind == KIND_EXPLICIT else "has_implicit"] = True
+        else:
+            if "momentum" not in system.outputs:
+                raise EmitError(f"method {name!r} needs the 'momentum' output; add it to outputs")
+            record["work"] = 3 * n * n + 5 * n + N
+            record["call"] = f"{prefix}_symplectic_euler_step(*t, x, p, h, work)"
+            record["call_in_driver"] = f"{prefix}_symplectic_euler_step(t, x, p, h, scratch)"
+            context["has_symplectic_euler"] = True
+        context["methods"].append(record)
+        context["method_rows"].append({"macro": f"{prefix.upper()}_METHOD_{scheme.name.upper()}", "id": number,
+                                       "work_macro": f"{prefix.upper()}_WORK_{scheme.name.upper()}",
+                                       "work": record["work"]})
+        context["exported"].append(_record(
+            f"int {prefix}_step_{scheme.name}({real} *t, {real} *x, const {real} *p, {real} h, {real} *work)",
+            f"One step of {record['title']} (order {scheme.order}); work holds {record['work']} values.", []))
+    context["work_size"] = N + max(m["work"] for m in context["methods"])
+    decl = (f"int {prefix}_simulate(int method, {real} t0, const {real} *x0, const {real} *p, {real} h, "
+            f"long n_steps, long stride, {real} *t_out, {real} *x_out, {real} *energy_out, "
+            f"{real} *points_out, {real} *work, long *steps_done)")
+    context["simulate_decl"] = decl
+    context["exported"].append(_record(decl, "Fixed-step integration loop; returns a status code.", []))
+    sweep = (f"void {prefix}_sweep(int method, long n_members, const {real} *x0s, const {real} *ps, {real} t0, "
+             f"{real} h, long n_steps, long stride, int track_energy, {real} *x_final, {real} *q_max, "
+             f"{real} *energy_error, int *status, long *steps_done, {real} *traj, {real} *work)")
+    context["sweep_decl"] = sweep
+    context["n_params_or_one"] = max(1, len(system.free_parameters))
+    context["exported"].append(_record(sweep, "Many independent members, one after another.", []))
+    return context
+
+
+def _tableau_record(scheme, real: str) -> dict:
+    s = scheme.stages
+    value = (lambda v: _literal(float(v), real))
+    rows = [{"entries": ", ".join(value(v) for v in row), "comment": ", ".join(str(v) for v in row)}
+            for row in scheme.a]
+    return {"name": scheme.name, "title": scheme.title or scheme.name, "order": scheme.order, "stages": s,
+            "stages_squared": s * s, "a_rows": rows,
+            "b_values": ", ".join(value(v) for v in scheme.b), "b_comment": ", ".join(map(str, scheme.b)),
+            "c_values": ", ".join(value(v) for v in scheme.c), "c_comment": ", ".join(map(str, scheme.c))}
