@@ -1,5 +1,5 @@
 """analyze.py against independent values: synthetic data with known answers, the stability
-polynomial of RK4, and the structure of the figures."""
+polynomial of RK4, and the structure of the figures (figures.py)."""
 from __future__ import annotations
 
 import dataclasses
@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from lagcodegen import analyze, catalog
+from lagcodegen import analyze, catalog, figures
 from lagcodegen.build import compiler_available
 from lagcodegen.simulate import Status, Trajectory, jacobian, parameter_vector
 
@@ -145,7 +145,7 @@ def test_plot_work_precision_has_one_line_per_method():
     from matplotlib.figure import Figure
 
     open_before = plt.get_fignums()
-    fig = analyze.plot_work_precision(fake_records(), "test")
+    fig = figures.plot_work_precision(fake_records(), "test")
     assert plt.get_fignums() == open_before  # a bare Figure: no pyplot state, nothing to show
     assert isinstance(fig, Figure)
     ax = fig.axes[0]
@@ -159,7 +159,7 @@ def test_plot_stability_has_two_bars_per_method():
 
     measured = {"euler": 0.04, "rk4": 2.83, "backward_euler": math.inf}
     theory = {"euler": 0.0, "rk4": 2.83, "backward_euler": math.inf}
-    fig = analyze.plot_stability(measured, theory, note="a note")
+    fig = figures.plot_stability(measured, theory, note="a note")
     assert isinstance(fig, Figure)
     ax = fig.axes[0]
     assert len(ax.patches) == 2 * len(measured)
@@ -171,7 +171,7 @@ def test_plot_energy_error_has_one_line_per_trajectory():
 
     t = np.linspace(0.0, 1.0, 11)
     trajectories = {"a": synthetic_trajectory(t, 1.0 + 1e-6 * t), "b": synthetic_trajectory(t, 1.0 - 1e-3 * t)}
-    fig = analyze.plot_energy_error(trajectories, "test")
+    fig = figures.plot_energy_error(trajectories, "test")
     assert isinstance(fig, Figure)
     ax = fig.axes[0]
     assert [line.get_label() for line in ax.get_lines()] == ["a", "b"]

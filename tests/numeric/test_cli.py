@@ -20,7 +20,8 @@ import numpy as np
 import pytest
 
 from lagcodegen import catalog
-from lagcodegen.cli import main, parse_axis
+from lagcodegen.cli import main
+from lagcodegen.cli_runs import parse_axis
 from lagcodegen.heatmap import first_crossing_time, plot_heatmap
 from lagcodegen.pipeline import compile_model
 from lagcodegen.simulate import Status, solve_reference

@@ -1,0 +1,440 @@
+"""Command line: the simulate and sweep subcommands."""
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import time
+
+
+def parse_axis(item: str) -> tuple[str, "np.ndarray"]:
+    """``name=start:stop:count`` (linspace), ``name=start:stop:count:log`` (geomspace) or
+    ``name=v1,v2,...`` (explicit values) -> (name, values)."""
+    import numpy as np
+
+    name, sep, spec = item.partition("=")
+    name = name.strip()
+    if not sep or not name or not spec.strip():
+        raise SystemExit(f"lagcodegen: --grid {item!r} must look like name=start:stop:count[:log] or name=v1,v2,...")
+    if ":" not in spec:
+        try:
+            return name, np.array([float(v) for v in spec.split(",") if v.strip()] or [], dtype=float)
+        except ValueError:
+            raise SystemExit(f"lagcodegen: --grid {name!r}: {spec!r} is not a comma-separated list "
+                             "of numbers") from None
+    parts = [part.strip() for part in spec.split(":")]
+    log = parts[-1].lower() == "log"
+    numbers = parts[:-1] if log else parts
+    try:
+        start, stop, count = float(numbers[0]), float(numbers[1]), int(numbers[2])
+        if len(numbers) != 3:
+            raise ValueError
+    except (ValueError, IndexError):
+        raise SystemExit(f"lagcodegen: --grid {name!r}: {spec!r} must be start:stop:count or start:stop:count:log "
+                         "(numbers start and stop, an integer count)") from None
+    if count < 1:
+        raise SystemExit(f"lagcodegen: --grid {name!r}: count must be at least 1, got {count}")
+    if log and not (start > 0 and stop > 0):
+        raise SystemExit(f"lagcodegen: --grid {name!r}: a log axis needs positive start and stop, "
+                         f"got {start:g}:{stop:g}")
+    return name, (np.geomspace if log else np.linspace)(start, stop, count)
+
+
+def parse_grid(items) -> dict:
+    """Repeated ``--grid`` options -> {name: values}, in the given order (C order of members)."""
+    grid = {}
+    for item in items or []:
+        name, values = parse_axis(item)
+        if name in grid:
+            raise SystemExit(f"lagcodegen: --grid {name!r} is given twice")
+        if values.size == 0:
+            raise SystemExit(f"lagcodegen: --grid {name!r} has no values")
+        grid[name] = values
+    return grid
+
+
+def read_table(path: str) -> dict:
+    """A CSV member table (header row of names, one member per row) -> {name: values}."""
+    import csv
+
+    import numpy as np
+
+    try:
+        with open(path, newline="") as handle:
+            rows = [row for row in csv.reader(handle) if any(cell.strip() for cell in row)]
+    except OSError as error:
+        raise SystemExit(f"lagcodegen: --table {path}: {error.strerror}") from None
+    if len(rows) < 2:
+        raise SystemExit(f"lagcodegen: --table {path} needs a header row of names and at least one member row")
+    header = [cell.strip() for cell in rows[0]]
+    if len(set(header)) != len(header) or not all(header):
+        raise SystemExit(f"lagcodegen: --table {path}: the header {header} must name each column once")
+    table = {name: [] for name in header}
+    for line, row in enumerate(rows[1:], start=2):
+        if len(row) != len(header):
+            raise SystemExit(f"lagcodegen: --table {path} line {line} has {len(row)} values, the header {len(header)}")
+        for name, cell in zip(header, row):
+            try:
+                table[name].append(float(cell))
+            except ValueError:
+                raise SystemExit(f"lagcodegen: --table {path} line {line}: {name} = {cell!r} is not a number") from None
+    return {name: np.array(values) for name, values in table.items()}
+
+
+def prepare_run(args, command: str, swept=()) -> tuple:
+    """Derive the model and check every name given on the command line before compiling.
+
+    Returns (eom, fixed, params, x0) with plain ``{name: float}`` dicts.
+    """
+    from .cli import parse_assignments  # here, not at the top: cli imports this module
+    from .simulate import step_count
+
+    eom = derive_equations_of(args.model)
+    fixed = parse_assignments(args.fixed, "--fixed")
+    params = parse_assignments(args.param, "--param")
+    x0 = parse_assignments(args.x0, "--x0")
+    parameters = [p.name for p in eom.parameters]
+    states = [q.name for q in eom.q] + [u.name for u in eom.u]
+    free = [name for name in parameters if name not in fixed]
+    where = (f"free parameters of {eom.name}: {', '.join(free) or 'none'}; "
+             f"state variables: {', '.join(states)}")
+    for option, names, allowed in (("--fixed", fixed, parameters), ("--param", params, parameters),
+                                   ("--x0", x0, states), ("--grid/--table", swept, free + states)):
+        for name in names:
+            if name in fixed and option != "--fixed":
+                raise SystemExit(f"lagcodegen {command}: {name!r} in {option} is fixed by --fixed; {where}")
+            if name not in allowed:
+                raise SystemExit(f"lagcodegen {command}: unknown name {name!r} in {option}; {where}")
+    missing = [q.name for q in eom.q if q.name not in x0 and q.name not in swept]
+    if missing:
+        raise SystemExit(f"lagcodegen {command}: --x0 lacks coordinate(s) {', '.join(missing)} "
+                         f"(every coordinate needs a value; speeds default to 0)")
+    try:
+        step_count(0.0, args.t_end, args.h)
+    except ValueError as error:
+        raise SystemExit(f"lagcodegen {command}: --t-end/--h: {error}") from None
+    return eom, fixed, params, x0
+
+
+def derive_equations_of(spec: str):
+    from .cli import load_model  # here, not at the top: cli imports this module
+    from .derive import derive_equations
+
+    return derive_equations(load_model(spec))
+
+
+def compile_for(eom, method: str, fixed: dict, *, energy: bool, points: bool):
+    """The model compiled with one integrator and only the outputs the run records."""
+    from .build import BuildError
+    from .pipeline import compile_model
+    from .schemes import needs_jacobian
+
+    outputs = ["rhs"] + ["energy"] * (energy and eom.energy is not None) + ["points"] * (points and bool(eom.points))
+    outputs += ["jacobian"] * needs_jacobian([method])
+    try:
+        return compile_model(eom, outputs=outputs, fixed=fixed or None, methods=(method,))
+    except BuildError as error:
+        raise SystemExit(f"lagcodegen: building {eom.name} failed: {error}") from None
+
+
+def plot_coordinates(trajectory, title: str):
+    """Figure of every coordinate against t (a dotted line where a failed run stopped)."""
+    from matplotlib.figure import Figure  # Agg canvas via savefig; no pyplot
+
+    fig = Figure(figsize=(8.0, 4.5), dpi=100, layout="constrained")
+    ax = fig.add_subplot()
+    for j, name in enumerate(trajectory.names[:len(trajectory.names) // 2]):
+        ax.plot(trajectory.t, trajectory.x[:, j], linewidth=0.9, label=name)
+    if not trajectory.ok:
+        ax.axvline(trajectory.failed_time, color="red", linestyle=":", label=f"stopped: {trajectory.status.name}")
+    ax.set_xlabel("t")
+    ax.set_ylabel("coordinates")
+    ax.set_title(title)
+    ax.grid(True, alpha=0.3)
+    ax.legend(loc="best", fontsize="small")
+    return fig
+
+
+def cmd_simulate(args) -> int:
+    import numpy as np
+
+    from .simulate import parameter_vector, simulate
+
+    eom, fixed, params, x0 = prepare_run(args, "simulate")
+    if args.energy and eom.energy is None:
+        raise SystemExit(f"lagcodegen simulate: --energy: model {eom.name!r} has no energy expression")
+    start = time.perf_counter()
+    system = compile_for(eom, args.method, fixed, energy=args.energy, points=True)
+    compile_time, start = time.perf_counter() - start, time.perf_counter()
+    try:
+        run = simulate(system, x0, args.t_end, args.h, args.method, params=params, stride=args.stride,
+                       energy=args.energy, points=bool(system.layout.points))
+    except ValueError as error:
+        raise SystemExit(f"lagcodegen simulate: {error}") from None
+    elapsed = time.perf_counter() - start
+    steps = round(args.t_end / args.h)
+    print(f"{eom.name}, {run.method}, h = {args.h:g}, {steps} steps to t = {args.t_end:g}: {run.message}")
+    print(f"state at t = {run.t[-1]:.9g} (last kept sample): "
+          + ", ".join(f"{n} = {v:.9g}" for n, v in zip(run.names, run.x[-1])))
+    if run.energy is not None:
+        drift = float(np.max(np.abs(run.energy - run.energy[0])))
+        relative = drift / abs(float(run.energy[0])) if run.energy[0] else float("inf")
+        print(f"energy: E0 = {float(run.energy[0]):.9g}, max |E - E0| = {drift:.3e} (relative {relative:.3e})")
+    else:
+        print("energy: not recorded (add --energy)")
+    print(f"wall time: compile {compile_time:.2f} s, simulate {elapsed * 1e3:.2f} ms "
+          f"({steps / max(elapsed, 1e-12) / 1e6:.2f} M steps/s)")
+    if args.out:
+        layout = system.layout
+        extra = {} if run.energy is None else {"energy": run.energy}
+        if run.points is not None:
+            extra |= {"points": run.points, "point_names": np.array(run.point_names)}
+        np.savez(args.out, t=run.t, x=run.x, names=np.array(run.names), status=int(run.status),
+                 status_name=run.status.name, message=run.message, model=eom.name, method=run.method,
+                 h=args.h, t_end=args.t_end, stride=args.stride, x0=run.x[0],
+                 parameters=np.array(layout.parameters), p=parameter_vector(system, params),
+                 fixed_names=np.array([n for n, _ in layout.fixed]),
+                 fixed_values=np.array([float(v) for _, v in layout.fixed]), **extra)
+        print(f"wrote {args.out}")
+    if args.plot:
+        plot_coordinates(run, f"{eom.name}: {run.method}, h = {args.h:g} ({run.message})").savefig(args.plot, dpi=110)
+        print(f"wrote {args.plot}")
+    return 0 if run.ok else 1
+
+
+def check_sweep_outputs(args, members: dict, eom) -> str:
+    """Fail before compiling when --field or --heatmap cannot work; returns the field name."""
+    from .heatmap import product_axes, resolve_field
+
+    coordinates = [q.name for q in eom.q]
+    field = args.field or f"q_max:{coordinates[0]}"
+    try:
+        resolve_field(field, coordinates, coordinates + [u.name for u in eom.u])
+    except ValueError as error:
+        raise SystemExit(f"lagcodegen sweep: --field: {error}") from None
+    if field == "energy_error" and eom.energy is None:
+        raise SystemExit(f"lagcodegen sweep: --field energy_error: model {eom.name!r} has no energy expression")
+    if args.heatmap:
+        if len(members) != 2:
+            raise SystemExit(f"lagcodegen sweep: --heatmap needs exactly two swept names, got {', '.join(members)}")
+        if args.table:
+            import numpy as np
+            try:
+                product_axes(np.column_stack(list(members.values())), list(members))
+            except ValueError as error:
+                raise SystemExit(f"lagcodegen sweep: --heatmap: {error}") from None
+    return field
+
+
+def connect(address: str):
+    """A ``dask.distributed.Client`` connected to the scheduler at ``address``."""
+    try:
+        from dask.distributed import Client
+    except ImportError:
+        raise SystemExit("lagcodegen sweep: --scheduler needs dask.distributed "
+                         "(pip install 'lagcodegen[dask]')") from None
+    try:
+        return Client(address, timeout="10s")
+    except (OSError, TimeoutError) as error:
+        raise SystemExit(f"lagcodegen sweep: cannot connect to the Dask scheduler at {address}: {error}") from None
+
+
+def save_sweep(path, result, system, eom, args, params, x0) -> None:
+    """Every SweepResult array, the column and state names, and the run's settings, as .npz."""
+    import numpy as np
+
+    from .simulate import parameter_vector
+
+    arrays = {name: getattr(result, name) for name in ("values", "x_final", "q_max", "status", "steps_done",
+                                                      "blowup_time", "energy_error", "t", "trajectories")}
+    arrays = {name: value for name, value in arrays.items() if value is not None}
+    if result.grid is not None:
+        arrays |= {f"grid_{name}": axis for name, axis in zip(result.columns, result.grid)}
+    layout = system.layout
+    np.savez(path, **arrays, columns=np.array(result.columns), state_names=np.array(result.state_names),
+             coordinate_names=np.array(result.coordinate_names), completed=result.completed,
+             is_grid=result.grid is not None, model=eom.name, method=args.method, h=args.h,
+             t_end=args.t_end, stride=args.stride, parameters=np.array(layout.parameters),
+             p=parameter_vector(system, params), x0_names=np.array(list(x0)), x0_values=np.array(list(x0.values())),
+             fixed_names=np.array([n for n, _ in layout.fixed]),
+             fixed_values=np.array([float(v) for _, v in layout.fixed]))
+
+
+def print_sweep_summary(result, field: str, elapsed: float, compile_time: float, steps: int, method: str) -> None:
+    import numpy as np
+
+    from .heatmap import field_values
+    from .simulate import Status
+    from .sweep import NOT_RUN
+
+    axes = ", ".join(f"{name} ({len(axis)} values {axis.min():g}..{axis.max():g})"
+                     for name, axis in zip(result.columns, result.grid or ())) or ", ".join(result.columns)
+    print(f"swept {axes}: {result.n_members} members x {steps} {method} steps in {elapsed:.2f} s "
+          f"({result.n_members * steps / max(elapsed, 1e-12) / 1e6:.2f} M member-steps/s; "
+          f"compile {compile_time:.2f} s)")
+    codes, counts = np.unique(result.status, return_counts=True)
+    names = {NOT_RUN: "not_run", **{int(s): s.name.lower() for s in Status}}
+    print("status: " + ", ".join(f"{names.get(int(c), c)} {n}" for c, n in zip(codes, counts)))
+    if np.isfinite(result.blowup_time).any():
+        first = int(np.nanargmin(result.blowup_time))
+        where = ", ".join(f"{c} = {v:g}" for c, v in zip(result.columns, result.values[first]))
+        print(f"earliest failure at t = {result.blowup_time[first]:.6g} (member {first}: {where})")
+    ok = result.status == Status.OK
+    values, label = field_values(result, field)
+    finite = values[np.isfinite(values) & (ok | (field in ("blowup_time", "steps_done")))]
+    if finite.size and field != "status":
+        print(f"{field} ({label}): min {finite.min():.6g}, median {np.median(finite):.6g}, max {finite.max():.6g}")
+    if result.energy_error is not None and ok.any():
+        print(f"energy error max |E - E0| of completed members: median {np.median(result.energy_error[ok]):.3e}, "
+              f"max {np.max(result.energy_error[ok]):.3e}")
+
+
+def cmd_sweep(args) -> int:
+    from .heatmap import plot_heatmap
+    from .sweep import sweep
+
+    if bool(args.grid) == bool(args.table):
+        raise SystemExit("lagcodegen sweep: give the members either with --grid (repeatable) or with --table")
+    members = parse_grid(args.grid) if args.grid else read_table(args.table)
+    eom, fixed, params, x0 = prepare_run(args, "sweep", swept=members)
+    for name in members:  # a swept coordinate needs no base value in --x0
+        if name in [q.name for q in eom.q]:
+            x0.setdefault(name, float(members[name][0]))
+    field = check_sweep_outputs(args, members, eom)
+    if args.trajectories:
+        n_members = math.prod(len(v) for v in members.values()) if args.grid else len(next(iter(members.values())))
+        size = n_members * (round(args.t_end / args.h) // args.stride + 1) * 2 * eom.n * 8
+        if size > 2 ** 30:
+            print(f"lagcodegen sweep: warning: --trajectories will hold {size / 2 ** 30:.1f} GiB "
+                  "(raise --stride to keep fewer samples)", file=sys.stderr)
+    start = time.perf_counter()
+    system = compile_for(eom, args.method, fixed, energy=True, points=False)
+    compile_time = time.perf_counter() - start
+    client = connect(args.scheduler) if args.scheduler else None
+    start = time.perf_counter()
+    try:
+        result = sweep(system, **({"grid": members} if args.grid else {"members": members}), x0=x0,
+                       t_end=args.t_end, h=args.h, method=args.method, params=params,
+                       trajectories=args.trajectories, stride=args.stride, threads=args.threads, client=client)
+    except ValueError as error:
+        raise SystemExit(f"lagcodegen sweep: {error}") from None
+    finally:
+        if client is not None:
+            client.close()
+    print_sweep_summary(result, field, time.perf_counter() - start, compile_time, round(args.t_end / args.h),
+                        args.method)
+    if not result.completed:
+        print(f"interrupted: {int((result.status == -1).sum())} of {result.n_members} members not run; "
+              "the finished ones are kept")
+    if args.out:
+        save_sweep(args.out, result, system, eom, args, params, x0)
+        print(f"wrote {args.out}")
+    if args.heatmap:
+        title = f"{eom.name}: {field} ({args.method}, h = {args.h:g}, t_end = {args.t_end:g})"
+        plot_heatmap(result, field, title=title).savefig(args.heatmap, dpi=110)
+        print(f"wrote {args.heatmap}")
+    return 0 if result.completed else 130
+
+
+SIMULATE_EPILOG = """examples:
+  lagcodegen simulate double_pendulum --t-end 10 --h 1e-3 --x0 q1=1,q2=0.5 --energy --out run.npz --plot run.png
+  lagcodegen simulate elastic_pendulum --t-end 20 --h 1e-3 --x0 r=1.3,phi=0.3 --param k=60 --fixed g=9.81
+  lagcodegen simulate stiff_chain --t-end 1 --h 1e-4 --method implicit_midpoint --x0 x1=0.1,x2=0,x3=0
+
+The .npz holds t (n_out,), x (n_out, 2n), names, energy (with --energy), points and point_names
+(models with named points), status, status_name, message, model, method, h, t_end, stride, x0,
+parameters and p (free parameter values used), fixed_names and fixed_values.
+Exit code 0 when the run completed, 1 when it stopped early (singular mass matrix, divergence).
+"""
+
+SWEEP_EPILOG = """grid syntax (--grid, repeatable; members are the Cartesian product, the first axis slowest):
+  name=start:stop:count        count values, evenly spaced (numpy.linspace)
+  name=start:stop:count:log    count values, geometrically spaced (numpy.geomspace; start, stop > 0)
+  name=v1,v2,v3                these values
+A name is a free parameter (not one given with --fixed) or a state variable (q1, q1_d, ...).
+--table FILE.csv instead gives one member per row under a header row of names.
+
+fields (--field, for the summary and the heatmap):
+  q_max:<coordinate>   max |q| over the run      x_final:<state>   final value
+  energy_error         max |E - E0| over the run blowup_time       time a failed member stopped
+  steps_done           steps completed           status            0 ok, 1 singular mass matrix,
+                                                                   2 non-finite state, 3 Newton failed
+
+examples:
+  lagcodegen sweep elastic_pendulum --grid phi=0.05:1:20 --grid k=15:60:46 --x0 r=1.3 --t-end 60 \\
+      --h 5e-3 --field q_max:r --out sweep.npz --heatmap sweep.png
+  lagcodegen sweep double_pendulum --grid m2=0.5,1,2 --grid q1=0:3:31 --x0 q2=0 --t-end 10 \\
+      --h 1e-3 --trajectories --stride 100 --out dp.npz
+  lagcodegen sweep stiff_chain --grid k=0.5,1,2 --grid K=1e2:1e8:61:log --t-end 1 --h 1e-3 \\
+      --x0 x1=0.1,x2=0,x3=0 --field status --heatmap stability.png
+  lagcodegen sweep double_pendulum --table members.csv --x0 q1=1,q2=0 --t-end 5 --h 1e-3 \\
+      --scheduler tcp://127.0.0.1:8786
+
+The .npz holds every SweepResult array (values (n_members, n_columns), x_final, q_max, status,
+steps_done, blowup_time, energy_error, and t, trajectories with --trajectories), grid_<name> axes
+for a grid, columns, state_names, coordinate_names, completed, and the run's settings.
+Exit code 0, or 130 when interrupted (Ctrl-C; the finished members are still written).
+"""
+
+
+def add_run_arguments(parser) -> None:
+    """Options shared by simulate and sweep."""
+    from .schemes import SCHEMES
+
+    parser.add_argument("model", help="example name (see `lagcodegen examples`) or model file")
+    parser.add_argument("--t-end", type=float, required=True, metavar="T",
+                        help="end time (t starts at 0; T must be a whole number of steps H)")
+    parser.add_argument("--h", type=float, required=True, metavar="H", help="fixed step size")
+    parser.add_argument("--method", default="rk4", choices=tuple(SCHEMES),
+                        help="integrator, compiled in alone (default: rk4)")
+    parser.add_argument("--x0", action="append", metavar="NAME=VALUE",
+                        help="initial state, e.g. --x0 q1=1,q2=0.5; every coordinate needs a value "
+                             "(speeds default to 0)")
+    parser.add_argument("--param", action="append", metavar="NAME=VALUE",
+                        help="value of a free parameter (repeatable or comma-separated; "
+                             "others keep the model's defaults)")
+    parser.add_argument("--fixed", action="append", metavar="NAME=VALUE",
+                        help="fold a parameter into the C code as a constant (repeatable or comma-separated)")
+    parser.add_argument("--stride", type=int, default=1, metavar="K",
+                        help="keep every K-th state of a trajectory (default: 1)")
+
+
+def add_simulate_parser(commands) -> None:
+    simulate = commands.add_parser(
+        "simulate", help="compile and run one simulation, write .npz and a plot",
+        description="Compile MODEL with one integrator and run it from x0 to t = T in fixed steps;\n"
+                    "print the status, final state, energy drift and wall time.",
+        epilog=SIMULATE_EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    add_run_arguments(simulate)
+    simulate.add_argument("--energy", action="store_true", help="record T + V at each kept sample")
+    simulate.add_argument("--out", metavar="FILE.npz", help="write the trajectory here")
+    simulate.add_argument("--plot", metavar="FILE.png", help="plot the coordinates against t here")
+    simulate.set_defaults(run=cmd_simulate)
+
+
+def add_sweep_parser(commands) -> None:
+    sweep = commands.add_parser(
+        "sweep", help="run one compiled model over a grid or table of parameters and initial states",
+        description="Compile MODEL once and run it for every member of a grid (--grid) or table (--table)\n"
+                    "of free parameters and initial-state values; print a summary, write .npz and a heatmap.",
+        epilog=SWEEP_EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    add_run_arguments(sweep)
+    sweep.add_argument("--grid", action="append", metavar="NAME=SPEC",
+                       help="one grid axis: name=start:stop:count[:log] or name=v1,v2,... (repeatable)")
+    sweep.add_argument("--table", metavar="FILE.csv", help="explicit members: header of names, one row each")
+    sweep.add_argument("--threads", type=int, metavar="N", help="local worker threads (default: all cores)")
+    sweep.add_argument("--scheduler", metavar="ADDRESS",
+                       help="run on a Dask cluster, e.g. tcp://host:8786 (dask.distributed.Client)")
+    sweep.add_argument("--trajectories", action="store_true",
+                       help="keep every --stride-th state of every member (memory n_members x n_out x 2n)")
+    sweep.add_argument("--field", metavar="FIELD",
+                       help="value summarized and drawn in the heatmap (default: q_max:<first coordinate>)")
+    sweep.add_argument("--out", metavar="FILE.npz", help="write all results here")
+    sweep.add_argument("--heatmap", metavar="FILE.png", help="draw --field over a 2-D grid here")
+    sweep.set_defaults(run=cmd_sweep)
+
+
+def add_run_commands(commands) -> None:
+    """Register the simulate and sweep subcommands on ``commands`` (argparse subparsers)."""
+    add_simulate_parser(commands)
+    add_sweep_parser(commands)
