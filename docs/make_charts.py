@@ -34,7 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
-from lagcodegen import analyze, catalog
+from lagcodegen import analyze, catalog, figures
 from lagcodegen.pipeline import compile_model
 from lagcodegen.schemes import DEFAULT_METHODS, get_scheme
 from lagcodegen.simulate import jacobian, parameter_vector, simulate, solve_reference
@@ -230,11 +230,9 @@ def energy_section(energy: dict) -> str:
     t_end = energy["n"] * energy["h"]
     return "\n\n".join([
         "### Energy error of the double pendulum", "![Energy error](docs/energy_error.png)",
-        "The implicit midpoint rule keeps the energy error bounded with no visible drift; rk4 and dopri5 "
-        "drift linearly. `symplectic_euler` (u += h ud(q, u), "
-        "q += h u) is symplectic only when the mass matrix is constant; the double pendulum's M(q) is "
-        "not, and its energy wanders by O(1) (it matches an independent NumPy implementation of the same "
-        "update step).",
+        "The symplectic methods keep the energy error bounded with no drift: the implicit midpoint rule "
+        "(second order) and symplectic Euler in momentum form (p = M(q) u; first order, so its bounded "
+        "error is larger); rk4 and dopri5 drift linearly.",
         f"{energy['n']:.0e} steps of h = {energy['h']:g} s (t = 0 .. {t_end:g} s), E0 = "
         f"{analyze.energy_drift(next(iter(energy['trajectories'].values())))['e0']:.6g} J. "
         "drift rate: slope of a least-squares line through E(t) - E0.",
@@ -249,7 +247,7 @@ def save(fig, path: Path) -> None:
 
 
 def write_figures(out: Path, pendulum, chain, stab, energy) -> None:
-    fig = analyze.plot_work_precision(
+    fig = figures.plot_work_precision(
         pendulum["records"] + pendulum["scipy"],
         "Double pendulum, 10 s from q = (1.0, 0.5) rad, at rest: error vs cost",
         max_error=10.0, error_label="max-norm error of x(10 s)  [rad, rad/s]")
@@ -258,22 +256,22 @@ def write_figures(out: Path, pendulum, chain, stab, energy) -> None:
                label="reference accuracy\n(DOP853 vs Radau)")
     ax.legend(loc="center left", bbox_to_anchor=(1.01, 0.5), fontsize="small")
     save(fig, out / "work_precision_double_pendulum.png")
-    save(analyze.plot_work_precision(
+    save(figures.plot_work_precision(
         chain["records"] + chain["scipy"],
         "Stiff chain (K = 1e4, w = 141 rad/s), 1 s, stiff mode excited: error vs cost",
         max_error=10.0, error_label="max-norm error of x(1 s)  [m, m/s]  (reference: exact)"),
         out / "work_precision_stiff_chain.png")
-    save(analyze.plot_stability(
+    save(figures.plot_stability(
         stab["measured"], stab["theory"], searched_up_to=STABILITY_HI,
         title=f"Largest stable step on the stiff chain (undamped, w = {stab['w']:.1f} rad/s)",
         note=(f"measured: largest h*w at which a {STABILITY_STEPS}-step run's energy does not grow 10x. "
               "A finite run cannot see a very slow growth, so Euler, Heun and dopri5 (|R| just above 1) "
               "measure above their theoretical limit.")),
         out / "stability.png")
-    labels = {"symplectic_euler": "symplectic_euler (not symplectic here: M depends on q)"}
+    labels = {"symplectic_euler": "symplectic_euler (momentum form)"}
     order = ("implicit_midpoint", "symplectic_euler", "rk4", "dopri5")  # the dense band first, below
     trajectories = {labels.get(m, m): energy["trajectories"][m] for m in order}
-    save(analyze.plot_energy_error(
+    save(figures.plot_energy_error(
         trajectories, f"Double pendulum energy error, {energy['n']:,} steps of h = {energy['h']:g} s, "
         f"E(0) = {analyze.energy_drift(trajectories['rk4'])['e0']:.4g} J"), out / "energy_error.png")
 

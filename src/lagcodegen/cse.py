@@ -23,6 +23,8 @@ OUTPUT_KERNELS = {
     "points": "points",
     "jacobian": "jacobian",
     "momentum": "momentum",
+    "constraints": "constraints",
+    "multipliers": "dynamics",
 }
 DEFAULT_OUTPUTS = ("mass_matrix", "forcing", "accel", "rhs", "energy", "points", "jacobian")
 
@@ -70,6 +72,7 @@ class ReducedSystem:
 
     ``kinematics_identity`` is True when qd = u (every Lagrange route), so the C copies u.
     ``accelerations`` are the symbols a_j standing for ud_j in the jacobian kernel.
+    ``n_constraints`` is m, the number of holonomic constraints.
     ``ops_saved_by_fixing`` counts operations removed, before CSE, by folding fixed parameters.
     """
 
@@ -87,6 +90,7 @@ class ReducedSystem:
     kernels: tuple
     kinematics_identity: bool
     ops_saved_by_fixing: int
+    n_constraints: int = 0
 
     def kernel(self, name: str) -> ReducedKernel:
         for k in self.kernels:
@@ -127,7 +131,7 @@ def reduce_expressions(eom: EquationsOfMotion, outputs=DEFAULT_OUTPUTS,
         free_parameters=tuple(p for p in eom.parameters if p not in fixed_symbols),
         fixed_parameters=fixed_values, parameter_values=dict(eom.parameter_values), point_names=tuple(name for name, _ in eom.points),
         outputs=tuple(outputs), kernels=tuple(kernels), kinematics_identity=kinematics_identity,
-        ops_saved_by_fixing=int(saved))
+        ops_saved_by_fixing=int(saved), n_constraints=eom.m)
 
 
 def _checked_outputs(eom: EquationsOfMotion, outputs) -> list:
@@ -139,6 +143,11 @@ def _checked_outputs(eom: EquationsOfMotion, outputs) -> list:
             raise KernelError(f"model {eom.name!r} has no energies (route {eom.route}); drop 'energy'")
         if out == "points" and not eom.points:
             continue  # nothing to output: the scene names no points
+        if out in ("constraints", "multipliers") and not eom.m:
+            raise KernelError(f"output {out!r} needs holonomic constraints; model {eom.name!r} has none")
+        if out == "jacobian" and eom.m:
+            raise KernelError(f"the jacobian output (implicit methods) is not available for the constrained "
+                              f"model {eom.name!r} yet; use an explicit method")
         if out == "momentum" and (reason := momentum_obstacle(eom)) is not None:
             raise KernelError(f"the momentum output (symplectic Euler) does not apply to {eom.name!r}: {reason}")
         if out not in chosen:
@@ -182,7 +191,9 @@ def _output_blocks(eom: EquationsOfMotion, outputs, accelerations) -> dict:
         elif kernel == "dynamics":
             kin = [] if list(eom.kinematics) == list(eom.u) else \
                 [(("K", j, 0), eom.kinematics[j]) for j in range(n)]
-            blocks[kernel] = kin + lower + forcing
+            blocks[kernel] = kin + lower + forcing + _constraint_block(eom, with_bias=True)
+        elif kernel == "constraints":
+            blocks[kernel] = _constraint_block(eom, with_bias=False)
         elif kernel == "energy":
             blocks[kernel] = [(("E", 0, 0), eom.energy)]
         elif kernel == "jacobian":
@@ -236,6 +247,8 @@ def momentum_obstacle(eom: EquationsOfMotion) -> str | None:
     """
     from .quadratic import NotQuadratic, quadratic_terms
 
+    if eom.m:
+        return "it has holonomic constraints (its multipliers are not in the momentum form)"
     if list(eom.kinematics) != list(eom.u):
         return "its generalized speeds are not the coordinate rates (qd != u)"
     if eom.t in eom.mass_matrix.free_symbols:
@@ -262,3 +275,14 @@ def _momentum_block(eom: EquationsOfMotion) -> list:
                      for l in range(n) if M[j, l] != 0 for k in range(n) if q[k] in M[j, l].free_symbols]
         rows.append((("G", j, 0), eom.forcing[j] + sp.Add(*transport)))
     return rows
+
+
+def _constraint_block(eom: EquationsOfMotion, with_bias: bool) -> list:
+    """("A", i, j) = dphi_i/dq_j and then ("C", i, 0) = gamma_i (dynamics) or ("R", i, 0) = phi_i,
+    ("T", i, 0) = dphi_i/dt (residuals and projection)."""
+    m, n = eom.m, eom.n
+    rows = [(("A", i, j), eom.constraint_jacobian[i, j]) for i in range(m) for j in range(n)]
+    if with_bias:
+        return rows + [(("C", i, 0), eom.constraint_bias[i]) for i in range(m)]
+    return rows + [(("R", i, 0), eom.constraints[i]) for i in range(m)] + \
+        [(("T", i, 0), eom.constraint_rate[i]) for i in range(m)]

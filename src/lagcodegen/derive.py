@@ -33,6 +33,7 @@ from sympy.core.function import AppliedUndef
 
 from .model import TIME, Model, ModelError, ROUTE_BODIES, ROUTE_ENERGIES, check_declared
 from .grouping import GroupedSum, components, sparse_diff
+from .holonomic import BAUMGARTE_ALPHA, BAUMGARTE_BETA, holonomic_terms
 from .quadratic import NotQuadratic, quadratic_terms
 
 ROUTE_TITLES = {
@@ -60,6 +61,13 @@ class EquationsOfMotion:
     kinematics : ImmutableMatrix, (n, 1); qd = kinematics
     kinetic_energy, potential_energy : Expr or None
     points : tuple of (name, ImmutableMatrix (d, 1))
+    constraints : ImmutableMatrix (m, 1)
+        Holonomic constraints phi(q, t) = 0 (m = 0 without them). Then M ud = F - A^T lambda,
+        A = dphi/dq, with A ud = ``constraint_bias`` (gamma, Baumgarte terms included; their
+        parameters ``baumgarte_alpha``, ``baumgarte_beta`` default to 0); see `holonomic`.
+    constraint_jacobian : ImmutableMatrix (m, n)
+    constraint_rate : ImmutableMatrix (m, 1); dphi/dt
+    constraint_bias : ImmutableMatrix (m, 1); gamma
     """
 
     name: str
@@ -77,6 +85,15 @@ class EquationsOfMotion:
     kinetic_energy: Any
     potential_energy: Any
     points: tuple
+    constraints: sp.ImmutableMatrix = sp.ImmutableMatrix(0, 1, [])
+    constraint_jacobian: sp.ImmutableMatrix = sp.ImmutableMatrix(0, 0, [])
+    constraint_rate: sp.ImmutableMatrix = sp.ImmutableMatrix(0, 1, [])
+    constraint_bias: sp.ImmutableMatrix = sp.ImmutableMatrix(0, 1, [])
+
+    @property
+    def m(self) -> int:
+        """Number of holonomic constraints."""
+        return self.constraints.rows
 
     @property
     def n(self) -> int:
@@ -383,9 +400,19 @@ def _assemble(model, coords, speeds, q, u, M, F, K, T, V, to_plain) -> Equations
             pos = sp.Matrix(list(where) + [0] * (3 - len(where)))  # planar points get z = 0
         points.append((name, sp.ImmutableMatrix(to_plain(pos, f"point {name!r}"))))
     route = ROUTE_TITLES.get(model.route, model.route)
+    parameters, values, constrained = tuple(model.parameters), dict(model.parameter_values), {}
+    if model.constraints:
+        if list(K) != list(u):
+            raise ModelError("holonomic constraints need generalized speeds equal to the coordinate rates")
+        phi = sp.Matrix([to_plain(c, f"constraint {i}") for i, c in enumerate(model.constraints)])
+        terms = holonomic_terms(phi, q, u, TIME)
+        constrained = {"constraints": sp.ImmutableMatrix(phi), "constraint_jacobian": terms["A"],
+                       "constraint_rate": terms["phi_t"], "constraint_bias": terms["gamma"]}
+        parameters += (BAUMGARTE_ALPHA, BAUMGARTE_BETA)
+        values.update({BAUMGARTE_ALPHA: 0.0, BAUMGARTE_BETA: 0.0})
+        route += " with holonomic constraints (Lagrange I)"
     return EquationsOfMotion(
         name=model.name, route=route, t=TIME, coordinates=tuple(coords), speeds=tuple(speeds),
-        q=tuple(q), u=tuple(u), parameters=tuple(model.parameters),
-        parameter_values=dict(model.parameter_values),
+        q=tuple(q), u=tuple(u), parameters=parameters, parameter_values=values,
         mass_matrix=sp.ImmutableMatrix(M), forcing=sp.ImmutableMatrix(F), kinematics=sp.ImmutableMatrix(K),
-        kinetic_energy=T, potential_energy=V, points=tuple(points))
+        kinetic_energy=T, potential_energy=V, points=tuple(points), **constrained)

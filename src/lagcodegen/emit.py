@@ -60,6 +60,7 @@ class KernelLayout:
     functions: tuple
     methods: tuple = ()
     defaults: tuple = ()
+    n_constraints: int = 0
 
     @property
     def n(self) -> int:
@@ -86,10 +87,12 @@ STATUS_CODES = (
     ("LCG_NONFINITE_STATE", 2, "the state became NaN or infinite"),
     ("LCG_NEWTON_FAILED", 3, "an implicit step's Newton iteration did not converge"),
     ("LCG_UNKNOWN_METHOD", 4, "the method number is not compiled into this kernel"),
+    ("LCG_SINGULAR_CONSTRAINTS", 5, "the constraint Jacobian lost rank (a singular configuration)"),
 )
 #: local names the generated code uses itself; user symbols are renamed around them
 _RESERVED = {"t", "x", "p", "out", "M", "F", "ud", "qd", "xdot", "B", "J", "c", "status", "work", "h",
-             "i", "j", "k", "m", "s", "method", "stride", "n_steps", "steps_done"}
+             "i", "j", "k", "m", "s", "method", "stride", "n_steps", "steps_done", "A", "C", "Y", "z",
+             "lam", "Q", "phi", "phi_t", "project"}
 
 
 def template_dir() -> Path:
@@ -165,12 +168,28 @@ def render_sources(system: ReducedSystem, precision: str = "double", model_name:
     printer = CPrinter(precision=precision, names=names.symbols)
     real = precision
     functions = []
-    if any(out in system.outputs for out in ("accel", "rhs")):
+    if any(out in system.outputs for out in ("accel", "rhs", "multipliers")):
         functions.append(_dynamics_record(system, names, printer, real))
+        if system.n_constraints:
+            m, prefix = system.n_constraints, names.prefix
+            functions.append(record(
+                f"int {prefix}_dynamics({real} t, const {real} *x, const {real} *p, {real} *qd, {real} *ud)",
+                "qd and ud of the constrained system.",
+                [f"{real} lam[{m}];", f"return {prefix}_dynamics_constrained(t, x, p, qd, ud, lam, 0);"],
+                static=True))
     functions += [_function_record(system, system.kernel(_kernel_of(out)), names, printer, real, out)
                   for out in system.outputs]
     steppers = stepper_context(system, names, real, list(methods))
     stepper_prototypes = steppers.pop("exported")
+    if "constraints" in system.outputs:
+        prefix = names.prefix
+        stepper_prototypes = [
+            record(f"void {prefix}_residuals({real} t, const {real} *x, const {real} *p, {real} *out)",
+                   f"Constraint residuals: phi ({system.n_constraints}), then A u + dphi/dt "
+                   f"({system.n_constraints}).", []),
+            record(f"int {prefix}_project({real} t, {real} *x, const {real} *p)",
+                   "Project x onto the constraint manifold (positions, then speeds); returns a status code.",
+                   [])] + stepper_prototypes
     layout = _layout(system, names, real, model_name, functions + stepper_prototypes,
                      tuple(m["name"] for m in steppers["methods"]))
     context = _context(system, names, layout, functions, real) | steppers
@@ -277,6 +296,21 @@ def _function_record(system, kernel, names, printer, real, output):
                        f"Positions of {len(system.point_names)} named points, 3 values each.", body)
     if output == "jacobian":
         return _jacobian_record(system, kernel, names, printer, real)
+    if output == "multipliers":
+        body = [f"{real} qd[{n}], ud[{n}];", f"return {prefix}_dynamics_constrained(t, x, p, qd, ud, lam, Q);"]
+        return record(f"int {prefix}_multipliers({args}, {real} *lam, {real} *Q)",
+                      f"Multipliers lam ({system.n_constraints}) and generalized constraint forces "
+                      f"Q = A^T lam ({n}, or NULL): M ud = F - A^T lam.", body)
+    if output == "constraints":
+        m = system.n_constraints
+        body = _body_head(kernel, names, printer, real) + ["/* phi, A = dphi/dq, dphi/dt */"]
+        body += [f"phi[{i}] = {_print(printer, e, f'phi[{i}]')};" for (i, _), e in _results(kernel, "R").items()]
+        body += [f"A[{i * n + j}] = {_print(printer, e, f'dphi[{i}]/dq[{j}]')};"
+                 for (i, j), e in _results(kernel, "A").items()]
+        body += [f"phi_t[{i}] = {_print(printer, e, f'dphi[{i}]/dt')};" for (i, _), e in _results(kernel, "T").items()]
+        return record(f"void {prefix}_constraint_terms({args}, {real} *phi, {real} *A, {real} *phi_t)",
+                      f"Constraints phi ({m}), their Jacobian A = dphi/dq (row-major {m} x {n}) and dphi/dt ({m}).",
+                      body)
     if output == "momentum":
         body = _body_head(kernel, names, printer, real) + ["/* Mass matrix, lower triangle, mirrored */"]
         for (j, k), expr in _results(kernel, "M").items():
@@ -309,10 +343,49 @@ def _dynamics_record(system, names, printer, real) -> dict:
     else:
         body += [f"qd[{j}] = {_print(printer, expr, f'qd[{j}]')};"
                  for (j, _), expr in _results(kernel, "K").items()]
-    body += ldlt_solve_lines(n, {jk for jk, e in M.items() if e != 0}, real, f"{prefix}_pivot_failure(x)")
-    body.append("return LCG_OK;")
-    return record(f"int {prefix}_dynamics({real} t, const {real} *x, const {real} *p, {real} *qd, {real} *ud)",
-                   "K, M and F with shared temporaries, then M ud = F by LDL^T.", body, static=True)
+    nonzero = {jk for jk, e in M.items() if e != 0}
+    failure = f"{prefix}_pivot_failure(x)"
+    m = system.n_constraints
+    if not m:
+        body += ldlt_solve_lines(n, nonzero, real, failure)
+        body.append("return LCG_OK;")
+        return record(f"int {prefix}_dynamics({real} t, const {real} *x, const {real} *p, {real} *qd, {real} *ud)",
+                      "K, M and F with shared temporaries, then M ud = F by LDL^T.", body, static=True)
+    body += _constrained_solve_lines(kernel, printer, real, n, m, nonzero, failure, prefix)
+    return record(f"int {prefix}_dynamics_constrained({real} t, const {real} *x, const {real} *p, {real} *qd, "
+                  f"{real} *ud, {real} *lam, {real} *Q)",
+                  "K, M, F, A = dphi/dq and gamma with shared temporaries; M ud + A^T lam = F, A ud = gamma "
+                  "by the range-space method (LDL^T of M, Cholesky of A M^-1 A^T); Q = A^T lam if not NULL.",
+                  body, static=True)
+
+
+def _constrained_solve_lines(kernel, printer, real, n, m, nonzero, failure, prefix) -> list:
+    body = [f"{real} A[{m * n}], C[{m}], z[{n}], Y[{n * m}];", "int c, i;", "/* A = dphi/dq, gamma */"]
+    for (i, j), expr in _results(kernel, "A").items():
+        body.append(f"A[{i * n + j}] = {_print(printer, expr, f'dphi[{i}]/dq[{j}]')};")
+    for (i, _), expr in _results(kernel, "C").items():
+        body.append(f"C[{i}] = {_print(printer, expr, f'gamma[{i}]')};")
+    factor, LD = ldlt_factor_lines(n, nonzero, real, failure)
+    body += factor + ldlt_substitution_lines(n, LD, real, lambda i: f"F_{i}", lambda i: f"z[{i}]")
+    body.append(f"for (c = 0; c < {m}; ++c) {{  /* Y = M^-1 A^T */")
+    body += ["    " + line for line in ldlt_substitution_lines(
+        n, LD, real, lambda i: f"A[c * {n} + {i}]", lambda i: f"Y[{i * m} + c]")]
+    body += ["}",
+             f"if (!{prefix}_multipliers_solve(A, Y, z, C, lam)) return LCG_SINGULAR_CONSTRAINTS;",
+             f"for (i = 0; i < {n}; ++i) {{",
+             f"    {real} acc = z[i];",
+             f"    for (c = 0; c < {m}; ++c) acc -= Y[i * {m} + c] * lam[c];",
+             "    ud[i] = acc;",
+             "}",
+             "if (Q) {",
+             f"    for (i = 0; i < {n}; ++i) {{",
+             f"        {real} acc = {literal(0, real)};",
+             f"        for (c = 0; c < {m}; ++c) acc += A[c * {n} + i] * lam[c];",
+             "        Q[i] = acc;",
+             "    }",
+             "}",
+             "return LCG_OK;"]
+    return body
 
 
 def _jacobian_record(system, kernel, names, printer, real) -> dict:
@@ -361,7 +434,7 @@ def _layout(system: ReducedSystem, names: _Names, real: str, model_name: str, fu
         coordinates=tuple(s.name for s in system.q), speeds=tuple(s.name for s in system.u),
         parameters=tuple(s.name for s in system.free_parameters),
         fixed=tuple((s.name, v) for s, v in system.fixed_parameters),
-        points=system.point_names, functions=exported, methods=methods,
+        points=system.point_names, functions=exported, methods=methods, n_constraints=system.n_constraints,
         defaults=tuple((p.name, system.parameter_values[p]) for p in system.free_parameters
                        if p in system.parameter_values))
 
@@ -388,7 +461,14 @@ def _context(system: ReducedSystem, names: _Names, layout: KernelLayout, functio
         "point_rows": point_rows, "has_fixed": bool(fixed_rows),
         "status_codes": [{"name": c, "value": v, "doc": d} for c, v, d in STATUS_CODES],
         "prototypes": [f for f in functions if not f["static"]], "functions": functions,
-        "has_dynamics": any(f["decl"].startswith(f"static int {names.prefix}_dynamics(") for f in functions),
+        "has_dynamics": any(f["decl"].startswith(f"static int {names.prefix}_dynamics") for f in functions),
+        "has_constraints": system.n_constraints > 0, "n_constraints": system.n_constraints,
+        "n_constraint_matrix": system.n_constraints * n, "n_constraints_squared": system.n_constraints ** 2,
+        "has_constraint_terms": "constraints" in system.outputs,
+        "constraint_tolerance": literal(1e-12 if real == "double" else 1e-6, real),
+        "projection_iterations": 10, "n_residuals": 2 * system.n_constraints,
+        "n_multiplier_values": system.n_constraints + n,
+        "rank_tolerance": literal(1e-12 if real == "double" else 1e-6, real),
     }
 
 

@@ -93,6 +93,9 @@ class Model:
         Default numeric values (used by examples and simulation when not overridden).
     sympy_model : LagrangesMethod, KanesMethod or System, optional
         An existing sympy model; coordinates and speeds are taken from it.
+    constraints : sequence of Expr, optional
+        Holonomic constraints phi_i(q, t) = 0 (possibly rheonomic) between redundant coordinates:
+        Lagrange's equations of the first kind, with multipliers.
     """
 
     name: str
@@ -110,11 +113,12 @@ class Model:
     points: Mapping[str, Any] = field(default_factory=dict)
     parameter_values: Mapping[Any, float] = field(default_factory=dict)
     sympy_model: Any = None
+    constraints: Sequence[Any] = ()
 
     def __post_init__(self) -> None:
         self._check_name()
         set_ = lambda attr, value: object.__setattr__(self, attr, value)  # noqa: E731 (frozen)
-        for attr in ("coordinates", "parameters", "bodies", "loads"):
+        for attr in ("coordinates", "parameters", "bodies", "loads", "constraints"):
             if not isinstance(getattr(self, attr), (list, tuple)):
                 raise ModelError(f"{attr} must be a list or tuple, got {type(getattr(self, attr)).__name__}")
         set_("parameters", tuple(self.parameters))
@@ -132,6 +136,7 @@ class Model:
         set_("loads", tuple(_as_load(load) for load in self.loads))
         set_("points", dict(self.points))
         set_("parameter_values", self._checked_values())
+        set_("constraints", tuple(_as_expr(c, f"constraint {i}") for i, c in enumerate(self.constraints)))
         self._check_route()
         self._check_symbols()
 
@@ -226,6 +231,13 @@ class Model:
             if not isinstance(self.gravity, me.Vector):
                 raise ModelError(f"gravity must be a sympy.physics.vector Vector (e.g. -g*N.y), got {self.gravity!r}")
             exprs.append(("gravity", self.gravity.to_matrix(self.frame)))
+        for i, phi in enumerate(self.constraints):
+            if phi.atoms(sp.Derivative):
+                raise ModelError(f"constraint {i} ({phi}) contains speeds: only holonomic constraints "
+                                 "phi(q, t) = 0 are supported")
+            if not _dynamic_functions(phi) & set(self.coordinates):
+                raise ModelError(f"constraint {i} ({phi}) involves no coordinate")
+            exprs.append((f"constraint {i}", phi))
         check_declared(exprs, self.parameters, self.coordinates)
 
 

@@ -38,12 +38,16 @@ def compile_model(model: Model | EquationsOfMotion, *, outputs=None, fixed: Mapp
     """
     eom = model if isinstance(model, EquationsOfMotion) else derive_equations(model)
     methods = tuple(methods)
-    if methods == DEFAULT_METHODS and momentum_obstacle(eom) is not None:
+    defaulted = methods == DEFAULT_METHODS
+    if defaulted and momentum_obstacle(eom) is not None:
         methods = tuple(m for m in methods if m != "symplectic_euler")  # not applicable: see momentum_obstacle
+    if defaulted and eom.m:
+        methods = tuple(m for m in methods if not needs_jacobian([m]))  # no constrained Jacobian yet
     if outputs is None:
         outputs = [o for o in SIMULATION_OUTPUTS
                    if not (o == "energy" and eom.energy is None)
-                   and not (o == "jacobian" and not needs_jacobian(methods))]
+                   and not (o == "jacobian" and (not needs_jacobian(methods) or eom.m))]
+        outputs += ["constraints", "multipliers"] if eom.m else []
 
     outputs = list(outputs)
     needed = ["rhs"] if methods else []  # the integrators' own needs come with them

@@ -27,6 +27,7 @@ class Status(enum.IntEnum):
     NONFINITE_STATE = 2
     NEWTON_FAILED = 3
     UNKNOWN_METHOD = 4
+    SINGULAR_CONSTRAINTS = 5
 
     @property
     def message(self) -> str:
@@ -39,6 +40,7 @@ _MESSAGES = {
     Status.NONFINITE_STATE: "the state became NaN or infinite (the run diverged)",
     Status.NEWTON_FAILED: "the implicit step's Newton iteration did not converge",
     Status.UNKNOWN_METHOD: "the method is not compiled into this kernel",
+    Status.SINGULAR_CONSTRAINTS: "the constraint Jacobian lost rank (a singular configuration)",
 }
 
 
@@ -71,6 +73,11 @@ class Trajectory:
         The step that failed (1-based) and the time it started from, when status is not OK.
     method : str
     h : float
+    residuals : ndarray (n_out, 2m) or None
+        Constrained models: phi (m) then A u + dphi/dt (m) at each kept sample.
+    multipliers, constraint_forces : ndarray (n_out, m), (n_out, n) or None
+        Constrained models: lambda and the generalized constraint forces A^T lambda, with
+        M ud = F - A^T lambda (so the force the constraints exert is -A^T lambda).
     """
 
     t: np.ndarray
@@ -84,6 +91,9 @@ class Trajectory:
     failed_time: float | None
     method: str
     h: float
+    residuals: np.ndarray | None = None
+    multipliers: np.ndarray | None = None
+    constraint_forces: np.ndarray | None = None
 
     @property
     def ok(self) -> bool:
@@ -191,7 +201,8 @@ def step_count(t0: float, t_end: float, h: float) -> int:
 
 def simulate(system: CompiledSystem, x0, t_end: float, h: float, method: str = "rk4", *,
              params: Mapping | None = None, t0: float = 0.0, stride: int = 1, energy: bool = False,
-             points: bool = False, check_stability: bool = True) -> Trajectory:
+             points: bool = False, check_stability: bool = True, project: bool = False,
+             residuals: bool = False, multipliers: bool = False) -> Trajectory:
     """Integrate with a fixed step, the whole loop in C.
 
     Parameters
@@ -212,6 +223,13 @@ def simulate(system: CompiledSystem, x0, t_end: float, h: float, method: str = "
     check_stability : bool
         Warn (`StabilityWarning`) when h times an eigenvalue of the Jacobian at x0 lies outside
         the method's linear stability region.
+    project : bool
+        Constrained models: after every step, project the state back onto phi = 0 and
+        A u + dphi/dt = 0 (Gauss-Newton, then linear). Baumgarte stabilization instead is set by
+        the parameters ``baumgarte_alpha`` and ``baumgarte_beta``.
+    residuals, multipliers : bool
+        Constrained models: record the constraint residuals, and the multipliers with the
+        generalized constraint forces, at each kept sample.
 
     Returns
     -------
@@ -232,24 +250,32 @@ def simulate(system: CompiledSystem, x0, t_end: float, h: float, method: str = "
         raise ValueError(f"model {layout.model!r} was compiled without the 'energy' output")
     if points and not layout.points:
         raise ValueError(f"model {layout.model!r} was compiled without named points")
+    if (project or residuals or multipliers) and not layout.n_constraints:
+        raise ValueError(f"project, residuals and multipliers need holonomic constraints; "
+                         f"model {layout.model!r} has none")
     if check_stability:
         warn_if_unstable(system, x, p, h, method, t0, n_steps)
-    return _run(system, x, p, t0, h, n_steps, stride, method, energy, points)
+    return _run(system, x, p, t0, h, n_steps, stride, method, energy, points, project, residuals, multipliers)
 
 
-def _run(system, x, p, t0, h, n_steps, stride, method, energy, points) -> Trajectory:
+def _run(system, x, p, t0, h, n_steps, stride, method, energy, points, project=False, residuals=False,
+         multipliers=False) -> Trajectory:
     layout, dtype = system.layout, _dtype(system)
     n_out = n_steps // stride + 1
     t_out = np.empty(n_out, dtype=dtype)
     x_out = np.empty((n_out, 2 * layout.n), dtype=dtype)
     e_out = np.empty(n_out, dtype=dtype) if energy else None
     p_out = np.empty((n_out, len(layout.points), 3), dtype=dtype) if points else None
+    m = layout.n_constraints
+    r_out = np.full((n_out, 2 * m), np.nan, dtype=dtype) if m and residuals else None
+    m_out = np.full((n_out, m + layout.n), np.nan, dtype=dtype) if m and multipliers else None
     work = np.empty(_work_size(system), dtype=dtype)
     steps_done = system.ffi.new("long *")
     ptr = lambda a: system.ffi.NULL if a is None else _pointer(system, a)  # noqa: E731
     simulate_c = getattr(system.lib, f"{layout.prefix}_simulate")
     code = simulate_c(layout.methods.index(method), t0, _pointer(system, x), _pointer(system, p), h,
-                      n_steps, stride, ptr(t_out), ptr(x_out), ptr(e_out), ptr(p_out), ptr(work), steps_done)
+                      n_steps, stride, int(project), ptr(t_out), ptr(x_out), ptr(e_out), ptr(p_out),
+                      ptr(r_out), ptr(m_out), ptr(work), steps_done)
     status = Status(code)
     kept = n_out if status == Status.OK else steps_done[0] // stride + 1
     failed_step = None if status == Status.OK else steps_done[0] + 1
@@ -257,6 +283,9 @@ def _run(system, x, p, t0, h, n_steps, stride, method, energy, points) -> Trajec
     trajectory = Trajectory(
         t=t_out[:kept], x=x_out[:kept], names=layout.coordinates + layout.speeds,
         energy=None if e_out is None else e_out[:kept], points=None if p_out is None else p_out[:kept],
+        residuals=None if r_out is None else r_out[:kept],
+        multipliers=None if m_out is None else m_out[:kept, :m],
+        constraint_forces=None if m_out is None else m_out[:kept, m:],
         point_names=layout.points, status=status, failed_step=failed_step, failed_time=failed_time,
         method=method, h=h)
     if not trajectory.ok:

@@ -148,7 +148,7 @@ def sweep(system: CompiledSystem, grid: Mapping | None = None, *, members: Mappi
           t_end: float, h: float, method: str = "rk4", params: Mapping | None = None, t0: float = 0.0,
           trajectories: bool = False, stride: int = 1, threads: int | None = None,
           chunk_size: int | None = None, progress: bool | None = None, client=None,
-          track_energy: bool = True) -> SweepResult:
+          track_energy: bool = True, project: bool = False) -> SweepResult:
     """Run one compiled model for every member of a grid or table.
 
     Parameters
@@ -174,6 +174,8 @@ def sweep(system: CompiledSystem, grid: Mapping | None = None, *, members: Mappi
         Run chunks as tasks on this cluster instead of local threads.
     track_energy : bool
         Record max |E - E0| per member (one energy evaluation per step).
+    project : bool
+        Constrained models: project every member back onto the constraints after each step.
     """
     if (grid is None) == (members is None):
         raise ValueError("give exactly one of grid= (Cartesian) or members= (explicit table)")
@@ -189,7 +191,9 @@ def sweep(system: CompiledSystem, grid: Mapping | None = None, *, members: Mappi
     n_steps = step_count(t0, t_end, h)
     track_energy = track_energy and f"{layout.prefix}_energy" in layout.functions
     xs, ps = member_arrays(system, columns, values, x0, params)
-    job = _Job(system, layout.methods.index(method), t0, h, n_steps, stride, track_energy, trajectories)
+    if project and not layout.n_constraints:
+        raise ValueError(f"project needs holonomic constraints; model {layout.model!r} has none")
+    job = _Job(system, layout.methods.index(method), t0, h, n_steps, stride, track_energy, trajectories, project)
     out = _allocate(job, len(values))
     threads = threads or os.cpu_count() or 1
     chunk_size = chunk_size or max(1, min(4096, math.ceil(len(values) / (4 * threads))))
@@ -209,6 +213,7 @@ class _Job:
     stride: int
     track_energy: bool
     trajectories: bool
+    project: bool = False
 
     @property
     def n_out(self) -> int:
@@ -242,7 +247,7 @@ def _call(job: _Job, xs, ps, out) -> None:
     sweep_c = getattr(system.lib, f"{layout.prefix}_sweep")
     traj = out["traj"]
     sweep_c(job.method_id, len(xs), _pointer(system, xs), _pointer(system, ps), job.t0, job.h, job.n_steps,
-            job.stride, int(job.track_energy), _pointer(system, out["x_final"]), _pointer(system, out["q_max"]),
+            job.stride, int(job.project), int(job.track_energy), _pointer(system, out["x_final"]), _pointer(system, out["q_max"]),
             _pointer(system, out["energy_error"]), ffi.from_buffer("int[]", out["status"]),
             ffi.from_buffer("long[]", out["steps_done"]),
             ffi.NULL if traj is None else _pointer(system, traj), _pointer(system, work))

@@ -1,0 +1,33 @@
+"""Helper: the terms of holonomic constraints phi(q, t) = 0 for Lagrange's equations of the first kind.
+
+With A = dphi/dq (m, n) and the velocity constraint w = A u + dphi/dt = 0, differentiating once
+more along the motion gives A ud = gamma with (Haug, Computer-Aided Kinematics and Dynamics of
+Mechanical Systems, sec. 6.3; Nikravesh, Computer-Aided Analysis of Mechanical Systems, ch. 6)::
+
+    gamma = -(A u)_q u - 2 A_t u - phi_tt  =  -(w_q u + w_t)
+
+and Baumgarte's stabilization (Comput. Methods Appl. Mech. Eng. 1, 1972) replaces phi'' = 0 by
+phi'' + 2 alpha phi' + beta^2 phi = 0, i.e. gamma - 2 alpha w - beta^2 phi. The first-kind system is
+
+    [M  A^T] [ud    ]   [F    ]
+    [A  0  ] [lambda] = [gamma]
+
+so the generalized constraint forces acting on the system are -A^T lambda.
+"""
+from __future__ import annotations
+
+import sympy as sp
+
+BAUMGARTE_ALPHA = sp.Symbol("baumgarte_alpha")
+BAUMGARTE_BETA = sp.Symbol("baumgarte_beta")
+
+
+def holonomic_terms(phi: sp.Matrix, q, u, t) -> dict:
+    """A (m, n), phi_t (m, 1), w = A u + phi_t and the stabilized gamma (m, 1) of phi(q, t)."""
+    q_vec, u_vec = sp.Matrix(q), sp.Matrix(u)
+    A = phi.jacobian(q_vec)
+    phi_t = phi.diff(t)
+    w = A * u_vec + phi_t
+    gamma = -(w.jacobian(q_vec) * u_vec + w.diff(t)) - 2 * BAUMGARTE_ALPHA * w - BAUMGARTE_BETA ** 2 * phi
+    return {"A": sp.ImmutableMatrix(A), "phi_t": sp.ImmutableMatrix(phi_t), "w": sp.ImmutableMatrix(w),
+            "gamma": sp.ImmutableMatrix(gamma)}
