@@ -170,7 +170,7 @@ def render_sources(system: ReducedSystem, precision: str = "double", model_name:
     functions = []
     if any(out in system.outputs for out in ("accel", "rhs", "multipliers")):
         functions.append(_dynamics_record(system, names, printer, real))
-        if system.n_constraints:
+        if system.n_constraints and any(out in system.outputs for out in ("accel", "rhs")):
             m, prefix = system.n_constraints, names.prefix
             functions.append(record(
                 f"int {prefix}_dynamics({real} t, const {real} *x, const {real} *p, {real} *qd, {real} *ud)",

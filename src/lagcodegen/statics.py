@@ -12,6 +12,8 @@ also holds the transport inertia forces (centrifugal forces of a spinning frame)
 the *relative* equilibria, at rest in the moving frame. They exist only if the conditions do not
 depend on t; `equilibrium_conditions` checks that.
 
+Models with holonomic constraints: `constrained_statics.constrained_equilibrium`.
+
 About an equilibrium q0 the small motions dq = q - q0 obey the linear model::
 
     M0 dqdd + C0 dqd + K0 dq = 0,
