@@ -6,6 +6,8 @@ is natural. Weights (P, Q) are forces, as in the problem books: masses are P/g.
 """
 from __future__ import annotations
 
+import math
+
 import sympy as sp
 import sympy.physics.mechanics as me
 
@@ -222,6 +224,180 @@ def stiff_chain() -> Model:
                  parameter_values={m1: 1.0, m2: 1.0, m3: 1.0, k: 1.0, K: 1.0e4})
 
 
+# -- closed loops: Lagrange's equations of the first kind -------------------------------------
+def cartesian_pendulum() -> Model:
+    """A point mass m on a rigid massless rod l hinged at the origin, in Cartesian coordinates
+    x, y (y up) with the holonomic constraint x^2 + y^2 - l^2 = 0 and gravity -g in y.
+
+    Lagrange I: m xdd = -2 x lambda, m ydd = -m g - 2 y lambda, so the rod tension (pulling the
+    mass towards the hinge) is 2 l lambda = m (g cos(theta) + l thetad^2), theta = atan2(x, -y)."""
+    m, l, g = sp.symbols("m l g", positive=True)
+    x, y = me.dynamicsymbols("x y")
+    N, O = me.ReferenceFrame("N"), me.Point("O")
+    bob = O.locatenew("bob", x * N.x + y * N.y)
+    return Model("cartesian_pendulum", [x, y], (m, l, g), bodies=[me.Particle("bob", bob, m)],
+                 gravity=-g * N.y, frame=N, origin=O, points={"bob": bob},
+                 constraints=[x ** 2 + y ** 2 - l ** 2], parameter_values={m: 1.0, l: 1.0, g: 9.81})
+
+
+def _slider_crank_symbols():
+    m1, m2, m3, r, L, g, tau = sp.symbols("m1 m2 m3 r L g tau", positive=True)
+    values = {m1: 1.0, m2: 2.0, m3: 1.0, r: 0.1, L: 0.3, g: 9.81, tau: 1.0}
+    return (m1, m2, m3, r, L, g, tau), values
+
+
+def slider_crank(route: str = "bodies") -> Model:
+    """An in-line slider-crank in redundant coordinates (Lagrange I; Haug, Computer-Aided
+    Kinematics and Dynamics of Mechanical Systems, sec. 6.4; Nikravesh, ch. 7).
+
+    Crank: uniform rod (mass m1, length r) hinged at the origin O, angle theta from the x axis.
+    Connecting rod: uniform (mass m2, length L) from the crank pin A to the slider pin B, centre
+    (xc, yc), angle phi measured clockwise from the x axis (A -> B points along (cos phi, -sin phi),
+    so phi = asin(r sin(theta) / L) in the usual assembly). Slider: mass m3 at B = (s, 0).
+    Coordinates q = (theta, xc, yc, phi, s) (n = 5), closed by m = 4 constraints::
+
+        xc - L/2 cos(phi) - r cos(theta) = 0     rod end A = crank tip
+        yc + L/2 sin(phi) - r sin(theta) = 0
+        xc + L/2 cos(phi) - s            = 0     rod end B = slider
+        yc - L/2 sin(phi)                = 0     B on the x axis
+
+    A constant torque tau drives the crank; gravity g acts in -y (default 9.81, set g = 0 to drop
+    it). Defaults: r = 0.1, L = 0.3, m1 = 1, m2 = 2, m3 = 1, tau = 1. `slider_crank_minimal` is
+    the same mechanism in theta alone; `slider_crank_state` gives a consistent state."""
+    _check_route(route)
+    (m1, m2, m3, r, L, g, tau), values = _slider_crank_symbols()
+    theta, xc, yc, phi, s = me.dynamicsymbols("theta xc yc phi s")
+    q = [theta, xc, yc, phi, s]
+    constraints = [xc - L / 2 * sp.cos(phi) - r * sp.cos(theta), yc + L / 2 * sp.sin(phi) - r * sp.sin(theta),
+                   xc + L / 2 * sp.cos(phi) - s, yc - L / 2 * sp.sin(phi)]
+    params = (m1, m2, m3, r, L, g, tau)
+    points = {"crank_pin": (r * sp.cos(theta), r * sp.sin(theta)), "rod_centre": (xc, yc), "slider": (s, 0)}
+    if route == "energies":
+        T = (m1 * r ** 2 / 3 * theta.diff() ** 2 + m2 * (xc.diff() ** 2 + yc.diff() ** 2)
+             + m2 * L ** 2 / 12 * phi.diff() ** 2 + m3 * s.diff() ** 2) / 2
+        V = g * (m1 * r / 2 * sp.sin(theta) + m2 * yc)
+        return Model("slider_crank", q, params, kinetic_energy=T, potential_energy=V,
+                     generalized_forces={theta: tau}, points=points, constraints=constraints,
+                     parameter_values=values)
+    N, O = me.ReferenceFrame("N"), me.Point("O")
+    crank_frame, rod_frame = me.ReferenceFrame("K"), me.ReferenceFrame("R")
+    crank_frame.orient_axis(N, N.z, theta)
+    rod_frame.orient_axis(N, N.z, -phi)
+    crank_centre = O.locatenew("Gk", r / 2 * crank_frame.x)
+    rod_centre = O.locatenew("Gr", xc * N.x + yc * N.y)
+    bodies = [
+        me.RigidBody("crank", crank_centre, crank_frame, m1,
+                     (m1 * r ** 2 / 12 * me.outer(N.z, N.z), crank_centre)),
+        me.RigidBody("rod", rod_centre, rod_frame, m2, (m2 * L ** 2 / 12 * me.outer(N.z, N.z), rod_centre)),
+        me.Particle("slider", O.locatenew("B", s * N.x), m3),
+    ]
+    return Model("slider_crank", q, params, bodies=bodies, loads=[(crank_frame, tau * N.z)],
+                 gravity=-g * N.y, frame=N, origin=O, points=points, constraints=constraints,
+                 parameter_values=values)
+
+
+def slider_crank_minimal() -> Model:
+    """`slider_crank` in its one minimal coordinate theta (Lagrange II), the closed-form
+    kinematics: phi = asin(r sin(theta) / L), rod centre = A + L/2 (cos(phi), -sin(phi)),
+    slider s = r cos(theta) + L cos(phi); same parameters and defaults."""
+    (m1, m2, m3, r, L, g, tau), values = _slider_crank_symbols()
+    theta = me.dynamicsymbols("theta")
+    phi = sp.asin(r * sp.sin(theta) / L)
+    xc, yc = r * sp.cos(theta) + L / 2 * sp.cos(phi), r * sp.sin(theta) - L / 2 * sp.sin(phi)
+    s = r * sp.cos(theta) + L * sp.cos(phi)
+    speed2 = lambda *c: sum(ci.diff(TIME) ** 2 for ci in c)  # noqa: E731
+    T = (m1 * r ** 2 / 3 * theta.diff() ** 2 + m2 * speed2(xc, yc) + m2 * L ** 2 / 12 * phi.diff(TIME) ** 2
+         + m3 * speed2(s)) / 2
+    V = g * (m1 * r / 2 * sp.sin(theta) + m2 * yc)
+    points = {"crank_pin": (r * sp.cos(theta), r * sp.sin(theta)), "rod_centre": (xc, yc), "slider": (s, 0)}
+    return Model("slider_crank_minimal", [theta], (m1, m2, m3, r, L, g, tau), kinetic_energy=T,
+                 potential_energy=V, generalized_forces={theta: tau}, points=points, parameter_values=values)
+
+
+#: four-bar link lengths (crank l1, coupler l2, rocker l3, ground d): Grashof crank-rocker,
+#: s + l = 0.1 + 0.4 = 0.5 < p + q = 0.35 + 0.3 = 0.65 with the crank the shortest link
+FOUR_BAR_GRASHOF = (0.1, 0.35, 0.3, 0.4)
+#: a change-point linkage, s + l = 0.1 + 0.3 = p + q = 0.2 + 0.2: at theta1 = theta2 = theta3 = 0
+#: all four links lie flat on the x axis (O, A = (0.1, 0), B = (0.4, 0), O4 = (0.2, 0)) and the
+#: constraint Jacobian loses rank
+FOUR_BAR_FOLDING = (0.1, 0.3, 0.2, 0.2)
+
+
+def four_bar(lengths=FOUR_BAR_GRASHOF) -> Model:
+    """A planar four-bar linkage in redundant coordinates (Lagrange I): crank O A (uniform, mass
+    m1, length l1) hinged at O = (0, 0), coupler A B (m2, l2), rocker O4 B (m3, l3) hinged at
+    O4 = (d, 0); theta1, theta2, theta3 are the links' absolute angles from the x axis, closed by
+
+        l1 cos(theta1) + l2 cos(theta2) - l3 cos(theta3) - d = 0
+        l1 sin(theta1) + l2 sin(theta2) - l3 sin(theta3)     = 0
+
+    A constant torque tau drives the crank; gravity g in -y. ``lengths = (l1, l2, l3, d)`` sets
+    the default lengths: `FOUR_BAR_GRASHOF` (0.1, 0.35, 0.3, 0.4; the crank turns full circles;
+    Grashof: s + l <= p + q, crank shortest) or `FOUR_BAR_FOLDING` (0.1, 0.3, 0.2, 0.2, a change-point
+    linkage that folds flat at theta1 = theta2 = theta3 = 0, where A = dphi/dq has rank 1). The
+    lengths stay free parameters. Defaults: m1 = 1, m2 = 2, m3 = 1.5, g = 9.81, tau = 5 (above the largest
+    gravity torque on the crank, max dV/dtheta1 = 2.3 N m, so it turns from rest).
+    Consistent states: `four_bar_state`."""
+    theta1, theta2, theta3 = me.dynamicsymbols("theta1 theta2 theta3")
+    m1, m2, m3, l1, l2, l3, d, g, tau = sp.symbols("m1 m2 m3 l1 l2 l3 d g tau", positive=True)
+    if len(lengths) != 4 or not all(float(v) > 0 for v in lengths):
+        raise ValueError(f"lengths must be four positive numbers (l1, l2, l3, d), got {lengths!r}")
+    values = {m1: 1.0, m2: 2.0, m3: 1.5, g: 9.81, tau: 5.0}
+    values.update(zip((l1, l2, l3, d), map(float, lengths)))
+    N, O = me.ReferenceFrame("N"), me.Point("O")
+    frames = [me.ReferenceFrame(f"B{i}") for i in (1, 2, 3)]
+    for frame, angle in zip(frames, (theta1, theta2, theta3)):
+        frame.orient_axis(N, N.z, angle)
+    A = O.locatenew("A", l1 * frames[0].x)
+    O4 = O.locatenew("O4", d * N.x)
+    centres = [O.locatenew("G1", l1 / 2 * frames[0].x), A.locatenew("G2", l2 / 2 * frames[1].x),
+               O4.locatenew("G3", l3 / 2 * frames[2].x)]
+    bodies = [me.RigidBody(name, G, frame, mass, (mass * length ** 2 / 12 * me.outer(N.z, N.z), G))
+              for name, G, frame, mass, length in zip(("crank", "coupler", "rocker"), centres, frames,
+                                                       (m1, m2, m3), (l1, l2, l3))]
+    constraints = [l1 * sp.cos(theta1) + l2 * sp.cos(theta2) - l3 * sp.cos(theta3) - d,
+                   l1 * sp.sin(theta1) + l2 * sp.sin(theta2) - l3 * sp.sin(theta3)]
+    points = {"A": A, "B": A.locatenew("B", l2 * frames[1].x)}
+    return Model("four_bar", [theta1, theta2, theta3], (m1, m2, m3, l1, l2, l3, d, g, tau), bodies=bodies,
+                 loads=[(frames[0], tau * N.z)], gravity=-g * N.y, frame=N, origin=O, points=points,
+                 constraints=constraints, parameter_values=values)
+
+
+def four_bar_state(theta1: float, theta1_d: float = 0.0, lengths=FOUR_BAR_GRASHOF,
+                   open_branch: bool = True) -> tuple:
+    """A consistent `four_bar` state (theta1, theta2, theta3, and their rates) at crank angle
+    theta1 and crank speed theta1_d: B is the intersection of the circles about A (radius l2) and
+    O4 (radius l3), above the line A O4 when ``open_branch``; the rates solve A u = 0."""
+    l1, l2, l3, d = map(float, lengths)
+    ax, ay = l1 * math.cos(theta1), l1 * math.sin(theta1)
+    ex, ey = d - ax, -ay  # A -> O4
+    e = math.hypot(ex, ey)
+    along = (l2 ** 2 - l3 ** 2 + e ** 2) / (2 * e)
+    across = math.sqrt(l2 ** 2 - along ** 2) * (1 if open_branch else -1)
+    bx, by = ax + (along * ex - across * ey) / e, ay + (along * ey + across * ex) / e
+    theta2, theta3 = math.atan2(by - ay, bx - ax), math.atan2(by, bx - d)
+    # l2 w2 e2' - l3 w3 e3' = -l1 w1 e1' (e' = (-sin, cos)), by Cramer's rule
+    det = l2 * l3 * math.sin(theta3 - theta2)
+    theta2_d = -l1 * l3 * theta1_d * math.sin(theta3 - theta1) / det
+    theta3_d = -l1 * l2 * theta1_d * math.sin(theta2 - theta1) / det
+    return theta1, theta2, theta3, theta1_d, theta2_d, theta3_d
+
+
+def slider_crank_state(theta: float, theta_d: float = 0.0, r: float = 0.1, L: float = 0.3) -> tuple:
+    """A consistent `slider_crank` state (theta, xc, yc, phi, s, then their rates) from the
+    closed-form kinematics of `slider_crank_minimal` at crank angle theta and speed theta_d."""
+    phi = math.asin(r * math.sin(theta) / L)
+    phi_d = r * math.cos(theta) * theta_d / (L * math.cos(phi))
+    xc, yc = r * math.cos(theta) + L / 2 * math.cos(phi), r * math.sin(theta) - L / 2 * math.sin(phi)
+    xc_d = -r * math.sin(theta) * theta_d - L / 2 * math.sin(phi) * phi_d
+    yc_d = r * math.cos(theta) * theta_d - L / 2 * math.cos(phi) * phi_d
+    s, s_d = r * math.cos(theta) + L * math.cos(phi), -r * math.sin(theta) * theta_d - L * math.sin(phi) * phi_d
+    return theta, xc, yc, phi, s, theta_d, xc_d, yc_d, phi_d, s_d
+
+
+#: the committed examples (generated/). The closed-loop systems above (cartesian_pendulum,
+#: slider_crank, four_bar) are not listed: regenerate.example_files asks every example for the
+#: jacobian output and implicit_midpoint, which constrained models do not have yet.
 EXAMPLES = {
     "rolling_wheels": rolling_wheels,
     "elastic_pendulum": elastic_pendulum,
@@ -232,6 +408,10 @@ EXAMPLES = {
     "double_pendulum": double_pendulum,
     "pendulum_chain_5": lambda: pendulum_chain(5),
     "stiff_chain": stiff_chain,
+    "cartesian_pendulum": cartesian_pendulum,
+    "slider_crank": slider_crank,
+    "slider_crank_minimal": slider_crank_minimal,
+    "four_bar": four_bar,
 }
 
 

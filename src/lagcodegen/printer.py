@@ -302,7 +302,9 @@ class CPrinter(C99CodePrinter):
         wrap = prec < level or (not strict and prec <= level)
         # A power printed as a product or quotient needs parentheses where the sympy
         # precedence of Pow says it does not: ``a/(x*x)``, never ``a/x*x``.
-        wrap = wrap or (isinstance(item, sympy.Pow) and level >= PRECEDENCE["Mul"])
+        # sympy prints a negative product at the precedence of Add, so the same holds there:
+        # ``-x/(L*L)``, never ``-x/L*L``.
+        wrap = wrap or (isinstance(item, sympy.Pow) and level >= PRECEDENCE["Add"] and ("*" in s or "/" in s))
         return f"({s})" if wrap else s
 
     # --- piecewise and friends -----------------------------------------------------------

@@ -46,7 +46,13 @@ def sample_state(eom: EquationsOfMotion) -> SampleState:
     values[eom.t] = sp.Float(SAMPLE_TIME, 30)
     M = eom.mass_matrix.xreplace(values).evalf(30)
     F = eom.forcing.xreplace(values).evalf(30)
-    ud = M.LUsolve(F).evalf(30)
+    if eom.m:  # [M A^T; A 0] [ud; lambda] = [F; gamma]: Lagrange's equations of the first kind
+        A = eom.constraint_jacobian.xreplace(values).evalf(30)
+        gamma = eom.constraint_bias.xreplace(values).evalf(30)
+        augmented = sp.Matrix(sp.BlockMatrix([[M, A.T], [A, sp.zeros(eom.m, eom.m)]]))
+        ud = augmented.LUsolve(sp.Matrix.vstack(F, gamma))[:eom.n, 0].evalf(30)
+    else:
+        ud = M.LUsolve(F).evalf(30)
     return SampleState(x=tuple(q + u), p=tuple(p), M=tuple(M), F=tuple(F), ud=tuple(ud))
 
 
@@ -56,6 +62,9 @@ def example_files(name: str) -> dict:
     applicable = momentum_obstacle(eom) is None
     outputs = EXAMPLE_OUTPUTS if applicable else tuple(o for o in EXAMPLE_OUTPUTS if o != "momentum")
     methods = EXAMPLE_METHODS if applicable else tuple(m for m in EXAMPLE_METHODS if m != "symplectic_euler")
+    if eom.m:  # constrained: explicit methods, multipliers and projection instead of the Jacobian
+        outputs = tuple(o for o in outputs if o != "jacobian") + ("constraints", "multipliers")
+        methods = tuple(m for m in methods if m == "rk4")
     system = reduce_expressions(eom, outputs)
     sample = sample_state(eom)
     files = {}

@@ -27,7 +27,9 @@ from lagcodegen.cse import reduce_expressions
 from lagcodegen.emit import render_sources
 from lagcodegen.model import TIME, Model
 
-EXAMPLES = sorted(catalog.EXAMPLES)
+# Models with holonomic constraints solve the augmented (first-kind) system instead of M ud = F and
+# have no Jacobian kernel; tests/constraints checks them against a 30-digit augmented solve.
+EXAMPLES = sorted(name for name in catalog.EXAMPLES if not catalog.example(name).constraints)
 N_STATES = 5
 DIGITS = 30
 #: double: 30-digit sympy is exact to ~1e-30, so this bounds the kernel's own rounding (a few

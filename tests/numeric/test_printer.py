@@ -232,3 +232,21 @@ def test_compiled_values_match_sympy(precision, rtol, tmp_path):
     expected = [float(e.subs(POINT).evalf(30)) for e in EXPRS]
     for e, g, want in zip(EXPRS, got, expected):
         assert g == pytest.approx(want, rel=rtol, abs=rtol), e
+
+
+@pytest.mark.parametrize("make", [
+    lambda x, L, y: -x / L**2, lambda x, L, y: -x * y / L**3, lambda x, L, y: -x / (L + y)**2,
+    lambda x, L, y: x / L**2, lambda x, L, y: -L**2 * y + x, lambda x, L, y: -(x / (L * y**2)),
+    lambda x, L, y: 3 * x / (2 * L**2 * y**3), lambda x, L, y: -(L + y)**2 / x**4,
+])
+def test_negative_products_with_powers_keep_their_denominators(make):
+    # Regression: a negative product has sympy's Add precedence, and -x/L**2 once printed as
+    # -x/L*L. The printed C (only + - * / and parentheses here) is also valid Python, so its value
+    # is checked against sympy's evaluation (independent of the printer) at a sample point.
+    x, L, y = sp.symbols("x L y")
+    expr = make(x, L, y)
+    code = CPrinter(names={x: "x", L: "L", y: "y"}).doprint(expr)
+    values = {"x": 0.7, "L": 1.9, "y": 0.45}
+    got = eval(code, {}, dict(values))  # noqa: S307 (arithmetic only)
+    want = float(expr.subs({x: 0.7, L: 1.9, y: 0.45}))
+    assert got == pytest.approx(want, rel=1e-14), code
