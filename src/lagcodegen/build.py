@@ -224,9 +224,12 @@ def _compile_entry(sources, root, entry, module_name, flags, command, compiler, 
         ffibuilder.set_source(module_name, f'#include "{sources.header_name}"',
                               sources=[str(tmp / sources.source_name)], include_dirs=[str(tmp)],
                               extra_compile_args=list(flags))
-        with _compiler_env(compiler):
-            built = Path(ffibuilder.compile(tmpdir=str(tmp), verbose=False))
         so_name = module_name + _EXT_SUFFIX
+        if os.name == "posix":
+            built = _compile_in_parallel(ffibuilder, tmp, sources, module_name, flags, command, so_name)
+        else:
+            with _compiler_env(compiler):
+                built = Path(ffibuilder.compile(tmpdir=str(tmp), verbose=False))
         if built != tmp / so_name:
             os.replace(built, tmp / so_name)
         for item in tmp.iterdir():  # drop object files and distutils' build tree
@@ -242,6 +245,35 @@ def _compile_entry(sources, root, entry, module_name, flags, command, compiler, 
     finally:
         if kept is None and tmp.exists():
             shutil.rmtree(tmp, ignore_errors=True)
+
+
+def _compile_in_parallel(ffibuilder, tmp: Path, sources, module_name, flags, command, so_name) -> Path:
+    """Compile the kernels and cffi's wrapper at the same time, then link them (POSIX).
+
+    The two translation units are independent: the kernels get ``flags``, the wrapper (glue that
+    includes Python.h) a quick -O1. Running both at once and skipping setuptools roughly halves a
+    cold build on two cores. A failure raises cffi.VerificationError like cffi's own build.
+    """
+    wrapper = tmp / f"{module_name}.c"
+    ffibuilder.emit_c_code(str(wrapper))
+    shared = shlex.split(sysconfig.get_config_var("CCSHARED") or "-fPIC")
+    include = sysconfig.get_paths()["include"]
+    wrapper_flags = [f for f in flags if not f.startswith("-O")] + ["-O1"]
+    jobs = [[*command, *flags, *shared, "-I", str(tmp), "-c", str(tmp / sources.source_name),
+             "-o", str(tmp / "kernels.o")],
+            [*command, *wrapper_flags, *shared, "-I", str(tmp), "-I", include, "-c", str(wrapper),
+             "-o", str(tmp / "wrapper.o")]]
+    running = [subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True) for argv in jobs]
+    outputs = [process.communicate()[0] for process in running]
+    for argv, process, output in zip(jobs, running, outputs):
+        if process.returncode != 0:
+            raise cffi.VerificationError(f"{shlex.join(argv)}\n{output}")
+    link_flags = shlex.split(sysconfig.get_config_var("LDSHARED") or "cc -shared")[1:]
+    link = [*command, *link_flags, str(tmp / "kernels.o"), str(tmp / "wrapper.o"), "-o", str(tmp / so_name), "-lm"]
+    run = subprocess.run(link, capture_output=True, text=True)
+    if run.returncode != 0:
+        raise cffi.VerificationError(f"{shlex.join(link)}\n{run.stderr}")
+    return tmp / so_name
 
 
 def _compile_error(sources, kept: Path, module_name, flags, command, exc) -> BuildError:

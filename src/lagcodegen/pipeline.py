@@ -2,15 +2,24 @@
 
 ``compile_model`` chains the stages (derive, reduce, render, build) with their defaults; each
 stage stays callable on its own for users who want to inspect or change what passes between.
+The rendered sources are cached on disk beside the built modules, keyed by the derived equations
+and every option, so loading an unchanged model again skips CSE and rendering as well as gcc.
 """
 from __future__ import annotations
 
+import os
+import pickle
+import tempfile
+from pathlib import Path
 from typing import Mapping
 
+import sympy as sp
+
+from . import __version__, cache
 from .build import CompiledSystem, build_module
 from .cse import momentum_obstacle, reduce_expressions
 from .derive import EquationsOfMotion, derive_equations
-from .emit import render_sources
+from .emit import CSources, render_sources, template_dir
 from .model import Model
 from .schemes import DEFAULT_METHODS, needs_jacobian
 
@@ -54,6 +63,45 @@ def compile_model(model: Model | EquationsOfMotion, *, outputs=None, fixed: Mapp
     needed += ["jacobian"] if needs_jacobian(methods) else []
     needed += ["momentum"] if "symplectic_euler" in methods else []
     outputs += [o for o in needed if o not in outputs]
-    system = reduce_expressions(eom, outputs, fixed)
-    sources = render_sources(system, precision, methods=methods)
+    key = _sources_key(eom, outputs, fixed, methods, precision)
+    entry = cache.cache_dir(cache_dir) / "sources" / f"{key[:32]}.pickle"
+    sources = _load_sources(entry)
+    if sources is None:
+        system = reduce_expressions(eom, outputs, fixed)
+        sources = render_sources(system, precision, methods=methods)
+        _store_sources(entry, sources)
     return build_module(sources, cache_dir=cache_dir, extra_compile_args=extra_compile_args)
+
+
+def _sources_key(eom: EquationsOfMotion, outputs, fixed, methods, precision) -> str:
+    """sha256 of everything render_sources' output depends on (equations, options, templates)."""
+    templates = sorted(template_dir().glob("*.j2"))
+    expressions = (eom.mass_matrix, eom.forcing, eom.kinematics, eom.energy, eom.points, eom.constraints,
+                   eom.constraint_jacobian, eom.constraint_rate, eom.constraint_bias, eom.q, eom.u)
+    return cache.source_key({
+        "lagcodegen": __version__, "sympy": sp.__version__, "name": eom.name, "route": eom.route,
+        "expressions": sp.srepr(expressions),
+        "parameters": sp.srepr(tuple(eom.parameters)) + repr(sorted((str(k), v) for k, v in eom.parameter_values.items())),
+        "options": repr((list(outputs), sorted((str(k), float(v)) for k, v in (fixed or {}).items()),
+                         list(methods), precision)),
+        "templates": "".join(path.name + path.read_text() for path in templates),
+    })
+
+
+def _load_sources(entry: Path) -> CSources | None:
+    try:
+        with open(entry, "rb") as handle:
+            sources = pickle.load(handle)
+    except FileNotFoundError:
+        return None
+    except (OSError, pickle.UnpicklingError, EOFError, AttributeError, TypeError):  # corrupt: rebuild
+        return None
+    return sources if isinstance(sources, CSources) else None
+
+
+def _store_sources(entry: Path, sources: CSources) -> None:
+    entry.parent.mkdir(parents=True, exist_ok=True)
+    handle, temporary = tempfile.mkstemp(dir=entry.parent, suffix=".tmp")
+    with os.fdopen(handle, "wb") as out:
+        pickle.dump(sources, out, protocol=pickle.HIGHEST_PROTOCOL)
+    os.replace(temporary, entry)  # atomic: concurrent builders see the old file or the new one
