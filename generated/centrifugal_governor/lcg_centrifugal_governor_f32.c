@@ -253,27 +253,26 @@ static int lcg_centrifugal_governor_f32_finite(const float *x)
     return 1;
 }
 
-/* One explicit Runge-Kutta step of x at t; work holds (s + 1) * 2 values. */
-static int lcg_centrifugal_governor_f32_erk_step(int s, const float *a, const float *b, const float *c,
-                                 float t, float *x, const float *p, float h, float *work)
+/* classical Runge-Kutta (order 4): one step of x at t, its 4 stage(s) unrolled from the
+ * coefficient arrays above; work holds 4 stage derivatives and a stage state. */
+static int lcg_centrifugal_governor_f32_rk4_step(float t, float *x, const float *p, float h, float *work)
 {
     float *k = work;
-    float *xs = work + s * 2;
-    int i, j, m, status;
-    for (i = 0; i < s; ++i) {
-        for (m = 0; m < 2; ++m) {
-            float acc = 0.0F;
-            for (j = 0; j < i; ++j) acc += a[i * s + j] * k[j * 2 + m];
-            xs[m] = x[m] + h * acc;
-        }
-        status = lcg_centrifugal_governor_f32_dynamics(t + c[i] * h, xs, p, k + i * 2, k + i * 2 + 1);
-        if (status != LCG_OK) return status;
-    }
-    for (m = 0; m < 2; ++m) {
-        float acc = 0.0F;
-        for (i = 0; i < s; ++i) acc += b[i] * k[i * 2 + m];
-        x[m] += h * acc;
-    }
+    float *xs = work + 4 * 2;
+    int m, status;
+    (void)xs;
+    status = lcg_centrifugal_governor_f32_dynamics(t + lcg_centrifugal_governor_f32_rk4_c[0] * h, x, p, k + 0, k + 1);
+    if (status != LCG_OK) return status;
+    for (m = 0; m < 2; ++m) xs[m] = x[m] + h * (lcg_centrifugal_governor_f32_rk4_a[4] * k[0 + m]);
+    status = lcg_centrifugal_governor_f32_dynamics(t + lcg_centrifugal_governor_f32_rk4_c[1] * h, xs, p, k + 2, k + 3);
+    if (status != LCG_OK) return status;
+    for (m = 0; m < 2; ++m) xs[m] = x[m] + h * (lcg_centrifugal_governor_f32_rk4_a[9] * k[2 + m]);
+    status = lcg_centrifugal_governor_f32_dynamics(t + lcg_centrifugal_governor_f32_rk4_c[2] * h, xs, p, k + 4, k + 5);
+    if (status != LCG_OK) return status;
+    for (m = 0; m < 2; ++m) xs[m] = x[m] + h * (lcg_centrifugal_governor_f32_rk4_a[14] * k[4 + m]);
+    status = lcg_centrifugal_governor_f32_dynamics(t + lcg_centrifugal_governor_f32_rk4_c[3] * h, xs, p, k + 6, k + 7);
+    if (status != LCG_OK) return status;
+    for (m = 0; m < 2; ++m) x[m] += h * (lcg_centrifugal_governor_f32_rk4_b[0] * k[0 + m] + lcg_centrifugal_governor_f32_rk4_b[1] * k[2 + m] + lcg_centrifugal_governor_f32_rk4_b[2] * k[4 + m] + lcg_centrifugal_governor_f32_rk4_b[3] * k[6 + m]);
     return LCG_OK;
 }
 
@@ -472,7 +471,7 @@ static int lcg_centrifugal_governor_f32_symplectic_euler_step(float t, float *x,
 /* classical Runge-Kutta (order 4): advance (t, x) by one step h; work holds 10 values. */
 int lcg_centrifugal_governor_f32_step_rk4(float *t, float *x, const float *p, float h, float *work)
 {
-    int status = lcg_centrifugal_governor_f32_erk_step(4, lcg_centrifugal_governor_f32_rk4_a, lcg_centrifugal_governor_f32_rk4_b, lcg_centrifugal_governor_f32_rk4_c, *t, x, p, h, work);
+    int status = lcg_centrifugal_governor_f32_rk4_step(*t, x, p, h, work);
     if (status == LCG_OK) *t += h;
     return status;
 }
@@ -499,7 +498,7 @@ static int lcg_centrifugal_governor_f32_step_any(int method, float t, float *x, 
 {
     int status;
     switch (method) {
-    case 0: status = lcg_centrifugal_governor_f32_erk_step(4, lcg_centrifugal_governor_f32_rk4_a, lcg_centrifugal_governor_f32_rk4_b, lcg_centrifugal_governor_f32_rk4_c, t, x, p, h, scratch); break;
+    case 0: status = lcg_centrifugal_governor_f32_rk4_step(t, x, p, h, scratch); break;
     case 1: status = lcg_centrifugal_governor_f32_symplectic_euler_step(t, x, p, h, scratch); break;
     case 2: status = lcg_centrifugal_governor_f32_irk_step(1, lcg_centrifugal_governor_f32_implicit_midpoint_a, lcg_centrifugal_governor_f32_implicit_midpoint_b, lcg_centrifugal_governor_f32_implicit_midpoint_c, t, x, p, h, scratch); break;
     default: return LCG_UNKNOWN_METHOD;

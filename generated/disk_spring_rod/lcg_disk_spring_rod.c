@@ -264,27 +264,26 @@ static int lcg_disk_spring_rod_finite(const double *x)
     return 1;
 }
 
-/* One explicit Runge-Kutta step of x at t; work holds (s + 1) * 4 values. */
-static int lcg_disk_spring_rod_erk_step(int s, const double *a, const double *b, const double *c,
-                                 double t, double *x, const double *p, double h, double *work)
+/* classical Runge-Kutta (order 4): one step of x at t, its 4 stage(s) unrolled from the
+ * coefficient arrays above; work holds 4 stage derivatives and a stage state. */
+static int lcg_disk_spring_rod_rk4_step(double t, double *x, const double *p, double h, double *work)
 {
     double *k = work;
-    double *xs = work + s * 4;
-    int i, j, m, status;
-    for (i = 0; i < s; ++i) {
-        for (m = 0; m < 4; ++m) {
-            double acc = 0.0;
-            for (j = 0; j < i; ++j) acc += a[i * s + j] * k[j * 4 + m];
-            xs[m] = x[m] + h * acc;
-        }
-        status = lcg_disk_spring_rod_dynamics(t + c[i] * h, xs, p, k + i * 4, k + i * 4 + 2);
-        if (status != LCG_OK) return status;
-    }
-    for (m = 0; m < 4; ++m) {
-        double acc = 0.0;
-        for (i = 0; i < s; ++i) acc += b[i] * k[i * 4 + m];
-        x[m] += h * acc;
-    }
+    double *xs = work + 4 * 4;
+    int m, status;
+    (void)xs;
+    status = lcg_disk_spring_rod_dynamics(t + lcg_disk_spring_rod_rk4_c[0] * h, x, p, k + 0, k + 2);
+    if (status != LCG_OK) return status;
+    for (m = 0; m < 4; ++m) xs[m] = x[m] + h * (lcg_disk_spring_rod_rk4_a[4] * k[0 + m]);
+    status = lcg_disk_spring_rod_dynamics(t + lcg_disk_spring_rod_rk4_c[1] * h, xs, p, k + 4, k + 6);
+    if (status != LCG_OK) return status;
+    for (m = 0; m < 4; ++m) xs[m] = x[m] + h * (lcg_disk_spring_rod_rk4_a[9] * k[4 + m]);
+    status = lcg_disk_spring_rod_dynamics(t + lcg_disk_spring_rod_rk4_c[2] * h, xs, p, k + 8, k + 10);
+    if (status != LCG_OK) return status;
+    for (m = 0; m < 4; ++m) xs[m] = x[m] + h * (lcg_disk_spring_rod_rk4_a[14] * k[8 + m]);
+    status = lcg_disk_spring_rod_dynamics(t + lcg_disk_spring_rod_rk4_c[3] * h, xs, p, k + 12, k + 14);
+    if (status != LCG_OK) return status;
+    for (m = 0; m < 4; ++m) x[m] += h * (lcg_disk_spring_rod_rk4_b[0] * k[0 + m] + lcg_disk_spring_rod_rk4_b[1] * k[4 + m] + lcg_disk_spring_rod_rk4_b[2] * k[8 + m] + lcg_disk_spring_rod_rk4_b[3] * k[12 + m]);
     return LCG_OK;
 }
 
@@ -483,7 +482,7 @@ static int lcg_disk_spring_rod_symplectic_euler_step(double t, double *x, const 
 /* classical Runge-Kutta (order 4): advance (t, x) by one step h; work holds 20 values. */
 int lcg_disk_spring_rod_step_rk4(double *t, double *x, const double *p, double h, double *work)
 {
-    int status = lcg_disk_spring_rod_erk_step(4, lcg_disk_spring_rod_rk4_a, lcg_disk_spring_rod_rk4_b, lcg_disk_spring_rod_rk4_c, *t, x, p, h, work);
+    int status = lcg_disk_spring_rod_rk4_step(*t, x, p, h, work);
     if (status == LCG_OK) *t += h;
     return status;
 }
@@ -510,7 +509,7 @@ static int lcg_disk_spring_rod_step_any(int method, double t, double *x, const d
 {
     int status;
     switch (method) {
-    case 0: status = lcg_disk_spring_rod_erk_step(4, lcg_disk_spring_rod_rk4_a, lcg_disk_spring_rod_rk4_b, lcg_disk_spring_rod_rk4_c, t, x, p, h, scratch); break;
+    case 0: status = lcg_disk_spring_rod_rk4_step(t, x, p, h, scratch); break;
     case 1: status = lcg_disk_spring_rod_symplectic_euler_step(t, x, p, h, scratch); break;
     case 2: status = lcg_disk_spring_rod_irk_step(1, lcg_disk_spring_rod_implicit_midpoint_a, lcg_disk_spring_rod_implicit_midpoint_b, lcg_disk_spring_rod_implicit_midpoint_c, t, x, p, h, scratch); break;
     default: return LCG_UNKNOWN_METHOD;

@@ -472,34 +472,33 @@ static int lcg_four_bar_finite(const double *x)
     return 1;
 }
 
-/* One explicit Runge-Kutta step of x at t; work holds (s + 1) * 6 values. */
-static int lcg_four_bar_erk_step(int s, const double *a, const double *b, const double *c,
-                                 double t, double *x, const double *p, double h, double *work)
+/* classical Runge-Kutta (order 4): one step of x at t, its 4 stage(s) unrolled from the
+ * coefficient arrays above; work holds 4 stage derivatives and a stage state. */
+static int lcg_four_bar_rk4_step(double t, double *x, const double *p, double h, double *work)
 {
     double *k = work;
-    double *xs = work + s * 6;
-    int i, j, m, status;
-    for (i = 0; i < s; ++i) {
-        for (m = 0; m < 6; ++m) {
-            double acc = 0.0;
-            for (j = 0; j < i; ++j) acc += a[i * s + j] * k[j * 6 + m];
-            xs[m] = x[m] + h * acc;
-        }
-        status = lcg_four_bar_dynamics(t + c[i] * h, xs, p, k + i * 6, k + i * 6 + 3);
-        if (status != LCG_OK) return status;
-    }
-    for (m = 0; m < 6; ++m) {
-        double acc = 0.0;
-        for (i = 0; i < s; ++i) acc += b[i] * k[i * 6 + m];
-        x[m] += h * acc;
-    }
+    double *xs = work + 4 * 6;
+    int m, status;
+    (void)xs;
+    status = lcg_four_bar_dynamics(t + lcg_four_bar_rk4_c[0] * h, x, p, k + 0, k + 3);
+    if (status != LCG_OK) return status;
+    for (m = 0; m < 6; ++m) xs[m] = x[m] + h * (lcg_four_bar_rk4_a[4] * k[0 + m]);
+    status = lcg_four_bar_dynamics(t + lcg_four_bar_rk4_c[1] * h, xs, p, k + 6, k + 9);
+    if (status != LCG_OK) return status;
+    for (m = 0; m < 6; ++m) xs[m] = x[m] + h * (lcg_four_bar_rk4_a[9] * k[6 + m]);
+    status = lcg_four_bar_dynamics(t + lcg_four_bar_rk4_c[2] * h, xs, p, k + 12, k + 15);
+    if (status != LCG_OK) return status;
+    for (m = 0; m < 6; ++m) xs[m] = x[m] + h * (lcg_four_bar_rk4_a[14] * k[12 + m]);
+    status = lcg_four_bar_dynamics(t + lcg_four_bar_rk4_c[3] * h, xs, p, k + 18, k + 21);
+    if (status != LCG_OK) return status;
+    for (m = 0; m < 6; ++m) x[m] += h * (lcg_four_bar_rk4_b[0] * k[0 + m] + lcg_four_bar_rk4_b[1] * k[6 + m] + lcg_four_bar_rk4_b[2] * k[12 + m] + lcg_four_bar_rk4_b[3] * k[18 + m]);
     return LCG_OK;
 }
 
 /* classical Runge-Kutta (order 4): advance (t, x) by one step h; work holds 30 values. */
 int lcg_four_bar_step_rk4(double *t, double *x, const double *p, double h, double *work)
 {
-    int status = lcg_four_bar_erk_step(4, lcg_four_bar_rk4_a, lcg_four_bar_rk4_b, lcg_four_bar_rk4_c, *t, x, p, h, work);
+    int status = lcg_four_bar_rk4_step(*t, x, p, h, work);
     if (status == LCG_OK) *t += h;
     return status;
 }
@@ -510,7 +509,7 @@ static int lcg_four_bar_step_any(int method, double t, double *x, const double *
 {
     int status;
     switch (method) {
-    case 0: status = lcg_four_bar_erk_step(4, lcg_four_bar_rk4_a, lcg_four_bar_rk4_b, lcg_four_bar_rk4_c, t, x, p, h, scratch); break;
+    case 0: status = lcg_four_bar_rk4_step(t, x, p, h, scratch); break;
     default: return LCG_UNKNOWN_METHOD;
     }
     if (status == LCG_OK && !lcg_four_bar_finite(x)) status = LCG_NONFINITE_STATE;

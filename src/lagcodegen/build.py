@@ -11,6 +11,7 @@ from __future__ import annotations
 import contextlib
 import functools
 import importlib.util
+import io
 import os
 import re
 import shlex
@@ -255,7 +256,8 @@ def _compile_in_parallel(ffibuilder, tmp: Path, sources, module_name, flags, com
     cold build on two cores. A failure raises cffi.VerificationError like cffi's own build.
     """
     wrapper = tmp / f"{module_name}.c"
-    ffibuilder.emit_c_code(str(wrapper))
+    with contextlib.redirect_stdout(io.StringIO()):  # cffi announces "generating <file>"
+        ffibuilder.emit_c_code(str(wrapper))
     shared = shlex.split(sysconfig.get_config_var("CCSHARED") or "-fPIC")
     include = sysconfig.get_paths()["include"]
     wrapper_flags = [f for f in flags if not f.startswith("-O")] + ["-O1"]

@@ -21,6 +21,7 @@ def stepper_context(system, names, real: str, methods: list) -> dict:
     N = 2 * n
     points = len(system.point_names) if "points" in system.outputs else 0
     context = {"has_steppers": bool(methods), "tableaux": [], "methods": [], "exported": [],
+               "explicit_steppers": [],
                "has_explicit": False, "has_implicit": False, "has_symplectic_euler": False,
                "identity_kinematics": system.kinematics_identity, "zero": _literal(0, real),
                "one": _literal(1, real), "fsuffix": "f" if real == "float" else "",
@@ -37,15 +38,22 @@ def stepper_context(system, names, real: str, methods: list) -> dict:
         if kind == KIND_IMPLICIT and "jacobian" not in system.outputs:
             raise EmitError(f"method {name!r} is implicit and needs the 'jacobian' output; add it to outputs")
         record = {"name": scheme.name, "id": number, "title": scheme.title or scheme.name, "order": scheme.order}
-        if kind in (KIND_EXPLICIT, KIND_IMPLICIT):
+        if kind == KIND_EXPLICIT:
+            context["tableaux"].append(_tableau_record(scheme, real))
+            record["work"] = (scheme.stages + 1) * N
+            record["call"] = f"{prefix}_{scheme.name}_step(*t, x, p, h, work)"
+            record["call_in_driver"] = f"{prefix}_{scheme.name}_step(t, x, p, h, scratch)"
+            context["explicit_steppers"].append(
+                {"name": scheme.name, "title": scheme.title or scheme.name, "order": scheme.order,
+                 "stages": scheme.stages, "lines": _explicit_stage_lines(scheme, prefix, n)})
+        elif kind == KIND_IMPLICIT:
             context["tableaux"].append(_tableau_record(scheme, real))
             s = scheme.stages
-            stepper = "erk_step" if kind == KIND_EXPLICIT else "irk_step"
             arrays = f"{prefix}_{scheme.name}_a, {prefix}_{scheme.name}_b, {prefix}_{scheme.name}_c"
-            record["work"] = (s + 1) * N if kind == KIND_EXPLICIT else 3 * s * N + (s * N) ** 2 + N * N + N
-            record["call"] = f"{prefix}_{stepper}({s}, {arrays}, *t, x, p, h, work)"
-            record["call_in_driver"] = f"{prefix}_{stepper}({s}, {arrays}, t, x, p, h, scratch)"
-            context["has_explicit" if kind == KIND_EXPLICIT else "has_implicit"] = True
+            record["work"] = 3 * s * N + (s * N) ** 2 + N * N + N
+            record["call"] = f"{prefix}_irk_step({s}, {arrays}, *t, x, p, h, work)"
+            record["call_in_driver"] = f"{prefix}_irk_step({s}, {arrays}, t, x, p, h, scratch)"
+            context["has_implicit"] = True
         else:
             if "momentum" not in system.outputs:
                 raise EmitError(f"method {name!r} needs the 'momentum' output; add it to outputs")
@@ -88,3 +96,26 @@ def _tableau_record(scheme, real: str) -> dict:
             "stages_squared": s * s, "a_rows": rows,
             "b_values": ", ".join(value(v) for v in scheme.b), "b_comment": ", ".join(map(str, scheme.b)),
             "c_values": ", ".join(value(v) for v in scheme.c), "c_comment": ", ".join(map(str, scheme.c))}
+
+
+def _explicit_stage_lines(scheme, prefix: str, n: int) -> list:
+    """Straight-line stages of one explicit tableau: only its nonzero a_ij and b_i, read from the
+    method's coefficient arrays (constant indices, so the compiler folds them)."""
+    N, s, name = 2 * n, scheme.stages, f"{prefix}_{scheme.name}"
+
+    def combination(weights, array) -> str:
+        return " + ".join(f"{name}_{array}[{index}] * k[{j * N} + m]" for index, j in weights)
+
+    lines = [f"(void){name}_a;  /* all zero for one-stage methods */"] if not any(any(r) for r in scheme.a) else []
+    for i in range(s):
+        state = "x"
+        weights = [(i * s + j, j) for j in range(i) if scheme.a[i][j] != 0]
+        if weights:
+            lines.append(f"for (m = 0; m < {N}; ++m) xs[m] = x[m] + h * ({combination(weights, 'a')});")
+            state = "xs"
+        lines.append(f"status = {prefix}_dynamics(t + {name}_c[{i}] * h, {state}, p, k + {i * N}, k + {i * N + n});")
+        lines.append("if (status != LCG_OK) return status;")
+    final = [(i, i) for i in range(s) if scheme.b[i] != 0]
+    lines.append(f"for (m = 0; m < {N}; ++m) x[m] += h * ({combination(final, 'b')});")
+    lines.append("return LCG_OK;")
+    return lines
