@@ -106,7 +106,9 @@ def prepare_run(args, command: str, swept=()) -> tuple:
             if name not in allowed:
                 raise SystemExit(f"lagcodegen {command}: unknown name {name!r} in {option}; {where}")
     missing = [q.name for q in eom.q if q.name not in x0 and q.name not in swept]
-    if missing:
+    if missing and eom.m and not swept:
+        x0 = consistent_x0(eom, x0, {**fixed, **params}, command)
+    elif missing:
         raise SystemExit(f"lagcodegen {command}: --x0 lacks coordinate(s) {', '.join(missing)} "
                          f"(every coordinate needs a value; speeds default to 0)")
     try:
@@ -123,18 +125,37 @@ def derive_equations_of(spec: str):
     return derive_equations(load_model(spec))
 
 
+def consistent_x0(eom, x0: dict, values: dict, command: str) -> dict:
+    """Complete a partial --x0 of a constrained model: the missing coordinates and speeds solve
+    the constraints (consistent.consistent_state), the given ones are held."""
+    from .consistent import consistent_state
+
+    q_given = {q.name: x0[q.name] for q in eom.q if q.name in x0}
+    u_given = {u.name: x0[u.name] for u in eom.u if u.name in x0}
+    try:
+        q, u = consistent_state(eom, q_given, u_given, values=values or None)
+    except ValueError as error:
+        raise SystemExit(f"lagcodegen {command}: --x0 is inconsistent with the constraints: {error}") from None
+    state = dict(zip([s.name for s in eom.q], map(float, q))) | dict(zip([s.name for s in eom.u], map(float, u)))
+    print(f"consistent initial state: " + ", ".join(f"{k} = {v:.9g}" for k, v in state.items()))
+    return state
+
+
 def compile_for(eom, method: str, fixed: dict, *, energy: bool, points: bool):
     """The model compiled with one integrator and only the outputs the run records."""
     from .build import BuildError
     from .pipeline import compile_model
     from .schemes import needs_jacobian
 
+    from .cse import KernelError
+
     outputs = ["rhs"] + ["energy"] * (energy and eom.energy is not None) + ["points"] * (points and bool(eom.points))
     outputs += ["jacobian"] * needs_jacobian([method])
+    outputs += ["constraints", "multipliers"] if eom.m else []  # residuals, multipliers, --project
     try:
         return compile_model(eom, outputs=outputs, fixed=fixed or None, methods=(method,))
-    except BuildError as error:
-        raise SystemExit(f"lagcodegen: building {eom.name} failed: {error}") from None
+    except (BuildError, KernelError) as error:
+        raise SystemExit(f"lagcodegen: building {eom.name} with {method} failed: {error}") from None
 
 
 def plot_coordinates(trajectory, title: str):
@@ -167,8 +188,10 @@ def cmd_simulate(args) -> int:
     system = compile_for(eom, args.method, fixed, energy=args.energy, points=True)
     compile_time, start = time.perf_counter() - start, time.perf_counter()
     try:
+        constrained = bool(system.layout.n_constraints)
         run = simulate(system, x0, args.t_end, args.h, args.method, params=params, stride=args.stride,
-                       energy=args.energy, points=bool(system.layout.points))
+                       energy=args.energy, points=bool(system.layout.points), project=args.project,
+                       residuals=constrained, multipliers=constrained)
     except ValueError as error:
         raise SystemExit(f"lagcodegen simulate: {error}") from None
     elapsed = time.perf_counter() - start
@@ -182,6 +205,11 @@ def cmd_simulate(args) -> int:
         print(f"energy: E0 = {float(run.energy[0]):.9g}, max |E - E0| = {drift:.3e} (relative {relative:.3e})")
     else:
         print("energy: not recorded (add --energy)")
+    if run.residuals is not None:
+        m = run.residuals.shape[1] // 2
+        print(f"constraints: max |phi| = {np.nanmax(np.abs(run.residuals[:, :m])):.3e}, "
+              f"max |A u + dphi/dt| = {np.nanmax(np.abs(run.residuals[:, m:])):.3e}"
+              f"{' (projected every step)' if args.project else ' (add --project to hold them)'}")
     print(f"wall time: compile {compile_time:.2f} s, simulate {elapsed * 1e3:.2f} ms "
           f"({steps / max(elapsed, 1e-12) / 1e6:.2f} M steps/s)")
     if args.out:
@@ -315,7 +343,8 @@ def cmd_sweep(args) -> int:
     try:
         result = sweep(system, **({"grid": members} if args.grid else {"members": members}), x0=x0,
                        t_end=args.t_end, h=args.h, method=args.method, params=params,
-                       trajectories=args.trajectories, stride=args.stride, threads=args.threads, client=client)
+                       trajectories=args.trajectories, stride=args.stride, threads=args.threads, client=client,
+                       project=args.project)
     except ValueError as error:
         raise SystemExit(f"lagcodegen sweep: {error}") from None
     finally:
@@ -358,7 +387,8 @@ fields (--field, for the summary and the heatmap):
   q_max:<coordinate>   max |q| over the run      x_final:<state>   final value
   energy_error         max |E - E0| over the run blowup_time       time a failed member stopped
   steps_done           steps completed           status            0 ok, 1 singular mass matrix,
-                                                                   2 non-finite state, 3 Newton failed
+                                                                   2 non-finite state, 3 Newton failed,
+                                                                   5 singular constraints
 
 examples:
   lagcodegen sweep elastic_pendulum --grid phi=0.05:1:20 --grid k=15:60:46 --x0 r=1.3 --t-end 60 \\
@@ -397,6 +427,9 @@ def add_run_arguments(parser) -> None:
                         help="fold a parameter into the C code as a constant (repeatable or comma-separated)")
     parser.add_argument("--stride", type=int, default=1, metavar="K",
                         help="keep every K-th state of a trajectory (default: 1)")
+    parser.add_argument("--project", action="store_true",
+                        help="models with holonomic constraints: project the state back onto them after every "
+                             "step (Baumgarte instead: --param baumgarte_alpha=10,baumgarte_beta=10)")
 
 
 def add_simulate_parser(commands) -> None:
