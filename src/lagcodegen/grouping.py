@@ -49,12 +49,30 @@ class GroupedSum:
 def _by_coefficient(terms: dict) -> dict:
     grouped: dict = {}
     for term, coefficients in terms.items():
-        coefficient = sp.factor_terms(sp.Add(*coefficients)) if len(coefficients) > 1 else coefficients[0]
+        coefficient = _factored_sum(coefficients)
         if coefficient.could_extract_minus_sign():  # -m * X and m * Y share the group m * (Y - X)
             coefficient, term = -coefficient, -term
         if coefficient != 0:
             grouped.setdefault(coefficient, []).append(term)
     return grouped
+
+
+def _factored_sum(terms: list):
+    """sum(terms) with what every term shares pulled out: 2*l1*l2*m2 + 2*l1*l2*m3 ->
+    2*l1*l2*(m2 + m3). Exact factors only (no gcd of powers); cheaper than sympy's factor_terms."""
+    if len(terms) == 1:
+        return terms[0]
+    split = [t.as_coeff_Mul() for t in terms]
+    shared = set(sp.Mul.make_args(split[0][1]))
+    for _, rest in split[1:]:
+        shared &= set(sp.Mul.make_args(rest))
+    numbers = {number for number, _ in split}
+    number = numbers.pop() if len(numbers) == 1 else sp.S.One
+    if not shared and number == 1:
+        return sp.Add(*terms)
+    inner = [sp.Mul(n / number, *[f for f in sp.Mul.make_args(rest) if f not in shared]) for n, rest in split]
+    content, primitive = sp.Add(*inner).as_content_primitive()  # 2*m3 + 2*m4 -> 2, m3 + m4
+    return number * content * sp.Mul(*shared) * primitive
 
 
 def merge_pythagorean(terms: list) -> list:
