@@ -532,22 +532,24 @@ int lcg_centrifugal_governor_f32_simulate(int method, float t0, const float *x0,
 {
     float *x = work;
     float *scratch = work + 2;
-    long k, sample = 1;
+    long k, sample = 1, until_sample;
     int i, status = LCG_OK;
     for (i = 0; i < 2; ++i) x[i] = x0[i];
     *steps_done = 0;
     if (!lcg_centrifugal_governor_f32_finite(x)) return LCG_NONFINITE_STATE;
     if (stride < 1) stride = 1;
+    until_sample = stride;  /* a countdown, not k % stride: no division per step */
     lcg_centrifugal_governor_f32_record(0, t0, x, p, t_out, x_out, energy_out, points_out, residuals_out, multipliers_out);
     for (k = 1; k <= n_steps; ++k) {
         const float t = t0 + (float)(k - 1) * h;
         status = lcg_centrifugal_governor_f32_step_any(method, t, x, p, h, scratch, project);
         if (status != LCG_OK) return status;
         *steps_done = k;
-        if (k % stride == 0) {
+        if (--until_sample == 0) {
             lcg_centrifugal_governor_f32_record(sample, t0 + (float)k * h, x, p, t_out, x_out, energy_out, points_out,
                                residuals_out, multipliers_out);
             ++sample;
+            until_sample = stride;
         }
     }
     return LCG_OK;
@@ -575,6 +577,7 @@ void lcg_centrifugal_governor_f32_sweep(int method, long n_members, const float 
         float *out = traj ? traj + member * n_out * 2 : 0;
         float *last = x_final + member * 2;
         long k, sample;
+        long until_sample = stride, stored = 0;
         int i, code = LCG_OK;
         float energy0 = 0.0F, drift = 0.0F;
         for (i = 0; i < 2; ++i) x[i] = last[i] = x0s[member * 2 + i];
@@ -596,8 +599,12 @@ void lcg_centrifugal_governor_f32_sweep(int method, long n_members, const float 
                 const float error = fabsf(lcg_centrifugal_governor_f32_energy(t0 + (float)k * h, x, p) - energy0);
                 if (error > drift) drift = error;
             }
-            if (out && k % stride == 0) {
-                for (i = 0; i < 2; ++i) out[(k / stride) * 2 + i] = x[i];
+            if (--until_sample == 0) {
+                until_sample = stride;
+                ++stored;
+                if (out) {
+                    for (i = 0; i < 2; ++i) out[stored * 2 + i] = x[i];
+                }
             }
         }
         steps_done[member] = k - 1;
@@ -605,7 +612,7 @@ void lcg_centrifugal_governor_f32_sweep(int method, long n_members, const float 
         for (i = 0; i < 2; ++i) x_final[member * 2 + i] = code == LCG_OK ? x[i] : last[i];
         if (track_energy) energy_error[member] = drift;
         if (out) {
-            for (sample = (k - 1) / stride + 1; sample < n_out; ++sample) {
+            for (sample = stored + 1; sample < n_out; ++sample) {
                 for (i = 0; i < 2; ++i) out[sample * 2 + i] = 0.0F / 0.0F;
             }
         }

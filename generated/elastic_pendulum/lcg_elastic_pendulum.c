@@ -541,22 +541,24 @@ int lcg_elastic_pendulum_simulate(int method, double t0, const double *x0, const
 {
     double *x = work;
     double *scratch = work + 4;
-    long k, sample = 1;
+    long k, sample = 1, until_sample;
     int i, status = LCG_OK;
     for (i = 0; i < 4; ++i) x[i] = x0[i];
     *steps_done = 0;
     if (!lcg_elastic_pendulum_finite(x)) return LCG_NONFINITE_STATE;
     if (stride < 1) stride = 1;
+    until_sample = stride;  /* a countdown, not k % stride: no division per step */
     lcg_elastic_pendulum_record(0, t0, x, p, t_out, x_out, energy_out, points_out, residuals_out, multipliers_out);
     for (k = 1; k <= n_steps; ++k) {
         const double t = t0 + (double)(k - 1) * h;
         status = lcg_elastic_pendulum_step_any(method, t, x, p, h, scratch, project);
         if (status != LCG_OK) return status;
         *steps_done = k;
-        if (k % stride == 0) {
+        if (--until_sample == 0) {
             lcg_elastic_pendulum_record(sample, t0 + (double)k * h, x, p, t_out, x_out, energy_out, points_out,
                                residuals_out, multipliers_out);
             ++sample;
+            until_sample = stride;
         }
     }
     return LCG_OK;
@@ -584,6 +586,7 @@ void lcg_elastic_pendulum_sweep(int method, long n_members, const double *x0s, c
         double *out = traj ? traj + member * n_out * 4 : 0;
         double *last = x_final + member * 4;
         long k, sample;
+        long until_sample = stride, stored = 0;
         int i, code = LCG_OK;
         double energy0 = 0.0, drift = 0.0;
         for (i = 0; i < 4; ++i) x[i] = last[i] = x0s[member * 4 + i];
@@ -605,8 +608,12 @@ void lcg_elastic_pendulum_sweep(int method, long n_members, const double *x0s, c
                 const double error = fabs(lcg_elastic_pendulum_energy(t0 + (double)k * h, x, p) - energy0);
                 if (error > drift) drift = error;
             }
-            if (out && k % stride == 0) {
-                for (i = 0; i < 4; ++i) out[(k / stride) * 4 + i] = x[i];
+            if (--until_sample == 0) {
+                until_sample = stride;
+                ++stored;
+                if (out) {
+                    for (i = 0; i < 4; ++i) out[stored * 4 + i] = x[i];
+                }
             }
         }
         steps_done[member] = k - 1;
@@ -614,7 +621,7 @@ void lcg_elastic_pendulum_sweep(int method, long n_members, const double *x0s, c
         for (i = 0; i < 4; ++i) x_final[member * 4 + i] = code == LCG_OK ? x[i] : last[i];
         if (track_energy) energy_error[member] = drift;
         if (out) {
-            for (sample = (k - 1) / stride + 1; sample < n_out; ++sample) {
+            for (sample = stored + 1; sample < n_out; ++sample) {
                 for (i = 0; i < 4; ++i) out[sample * 4 + i] = 0.0 / 0.0;
             }
         }

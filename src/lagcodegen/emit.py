@@ -371,7 +371,8 @@ def _constrained_solve_lines(kernel, printer, real, n, m, nonzero, failure, pref
     body += ["    " + line for line in ldlt_substitution_lines(
         n, LD, real, lambda i: f"A[c * {n} + {i}]", lambda i: f"Y[{i * m} + c]")]
     body += ["}",
-             f"if (!{prefix}_multipliers_solve(A, Y, z, C, lam)) return LCG_SINGULAR_CONSTRAINTS;",
+             f"c = {prefix}_multipliers_solve(A, Y, z, C, lam);",
+             "if (c != 1) return c == 0 ? LCG_SINGULAR_CONSTRAINTS : LCG_NONFINITE_STATE;",
              f"for (i = 0; i < {n}; ++i) {{",
              f"    {real} acc = z[i];",
              f"    for (c = 0; c < {m}; ++c) acc -= Y[i * {m} + c] * lam[c];",
