@@ -169,11 +169,16 @@ def make_substitution(coordinates, speeds, q, u, what: str) -> Callable:
 
 
 # -- Lagrange II ------------------------------------------------------------------------------
-def _derive_from_energies(model: Model) -> EquationsOfMotion:
+def _lagrange_symbols(model: Model):
+    """Coordinates, speeds qd, their plain symbols q, u and the substitution into them."""
     coords = model.coordinates
     speeds = tuple(c.diff(TIME) for c in coords)
     q, u = plain_symbols(coords, speeds, model.parameters)
-    to_plain = make_substitution(coords, speeds, q, u, "model")
+    return coords, speeds, q, u, make_substitution(coords, speeds, q, u, "model")
+
+
+def _derive_from_energies(model: Model) -> EquationsOfMotion:
+    coords, speeds, q, u, to_plain = _lagrange_symbols(model)
     T = to_plain(model.kinetic_energy, "kinetic energy")
     V = to_plain(model.potential_energy, "potential energy")
     R = to_plain(model.dissipation, "dissipation function")
@@ -299,10 +304,7 @@ def _term_motion(term, q, u, t, cache: dict) -> _TermMotion:
 
 def _derive_from_bodies(model: Model) -> EquationsOfMotion:
     """Translation by pairs of position terms shared between bodies; rotation body by body."""
-    coords = model.coordinates
-    speeds = tuple(c.diff(TIME) for c in coords)
-    q, u = plain_symbols(coords, speeds, model.parameters)
-    to_plain = make_substitution(coords, speeds, q, u, "model")
+    coords, speeds, q, u, to_plain = _lagrange_symbols(model)
     N, O, t, n = model.frame, model.origin, TIME, len(q)
     gravity = to_plain(components(model.gravity, N), "gravity") if model.gravity is not None else sp.zeros(3, 1)
 
