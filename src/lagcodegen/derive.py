@@ -292,12 +292,11 @@ def _term_motion(term, q, u, t, cache: dict) -> _TermMotion:
     if term in cache:
         return cache[term]
     symbols = term.free_symbols
-    partials = {k: term.diff(qk) for k, qk in enumerate(q) if qk in symbols}
+    partials = {k: sparse_diff(term, qk) for k, qk in enumerate(q) if qk in symbols}
     partials = {k: d for k, d in partials.items() if d != 0}
-    v = sp.Add(*[d * u[k] for k, d in partials.items()], term.diff(t) if t in symbols else 0)
+    v = sp.Add(*[d * u[k] for k, d in partials.items()], sparse_diff(term, t))
     v_symbols = v.free_symbols
-    a0 = sp.Add(*[v.diff(qk) * u[k] for k, qk in enumerate(q) if qk in v_symbols],
-                v.diff(t) if t in v_symbols else 0)
+    a0 = sp.Add(*[sparse_diff(v, qk) * u[k] for k, qk in enumerate(q) if qk in v_symbols], sparse_diff(v, t))
     cache[term] = motion = _TermMotion(partials, v, a0)
     return motion
 

@@ -121,4 +121,11 @@ def sparse_diff(expr, x):
         args = expr.args
         return sp.Add(*[sp.Mul(*args[:i], sparse_diff(f, x), *args[i + 1:])
                         for i, f in enumerate(args) if x in f.free_symbols])
+    if expr == x:
+        return sp.S.One
+    if isinstance(expr, (sp.sin, sp.cos)):  # the chain rule without sympy's Derivative machinery
+        inner = sparse_diff(expr.args[0], x)
+        return sp.cos(expr.args[0]) * inner if isinstance(expr, sp.sin) else -sp.sin(expr.args[0]) * inner
+    if expr.is_Pow and expr.exp.is_Integer and x not in expr.exp.free_symbols:
+        return expr.exp * expr.base ** (expr.exp - 1) * sparse_diff(expr.base, x)
     return expr.diff(x)
