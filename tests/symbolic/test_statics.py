@@ -277,4 +277,5 @@ def test_guesses_need_values(double):
     with pytest.raises(ValueError, match="pass values="):
         find_equilibria(double, guesses=[[0.1, 0.1]])
     found = find_equilibria(double, values={}, guesses=[[0.1, -0.2], {"q1": 3.0, "q2": 0.1}])
-    assert [(s[double.q[0]], s[double.q[1]]) for s in found] == pytest.approx([(0.0, 0.0), (math.pi, 0.0)])
+    flat = [float(s[q]) for s in found for q in double.q]
+    assert flat == pytest.approx([0.0, 0.0, math.pi, 0.0])
