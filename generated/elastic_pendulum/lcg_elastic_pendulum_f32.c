@@ -20,6 +20,46 @@ static int lcg_elastic_pendulum_f32_pivot_failure(const float *x)
     return LCG_SINGULAR_MASS_MATRIX;
 }
 
+/* Cholesky factor, in place, of the symmetric positive definite A (dim x dim, row-major, lower
+ * triangle used). Returns 1; 0 when a pivot is not above tolerance times the largest diagonal
+ * entry (rank lost); -1 when the entries overflowed (a diverged state). */
+static int lcg_elastic_pendulum_f32_spd_factor(float *A, int dim, float tolerance)
+{
+    float scale = 0.0F;
+    int i, j, k;
+    for (i = 0; i < dim; ++i) {
+        if (A[i * dim + i] > scale) scale = A[i * dim + i];
+    }
+    if (!isfinite(scale)) return -1;
+    for (j = 0; j < dim; ++j) {
+        float d = A[j * dim + j];
+        for (k = 0; k < j; ++k) d -= A[j * dim + k] * A[j * dim + k];
+        if (!(d > tolerance * scale)) return isfinite(d) ? 0 : -1;
+        d = sqrtf(d);
+        A[j * dim + j] = d;
+        for (i = j + 1; i < dim; ++i) {
+            float acc = A[i * dim + j];
+            for (k = 0; k < j; ++k) acc -= A[i * dim + k] * A[j * dim + k];
+            A[i * dim + j] = acc / d;
+        }
+    }
+    return 1;
+}
+
+/* Solve L L^T y = b in place with the factor from lcg_elastic_pendulum_f32_spd_factor. */
+static void lcg_elastic_pendulum_f32_spd_solve(const float *L, float *b, int dim)
+{
+    int i, k;
+    for (i = 0; i < dim; ++i) {
+        for (k = 0; k < i; ++k) b[i] -= L[i * dim + k] * b[k];
+        b[i] /= L[i * dim + i];
+    }
+    for (i = dim - 1; i >= 0; --i) {
+        for (k = i + 1; k < dim; ++k) b[i] -= L[k * dim + i] * b[k];
+        b[i] /= L[i * dim + i];
+    }
+}
+
 /* K, M and F with shared temporaries, then M ud = F by LDL^T. */
 static int lcg_elastic_pendulum_f32_dynamics(float t, const float *x, const float *p, float *qd, float *ud)
 {
@@ -389,40 +429,6 @@ static int lcg_elastic_pendulum_f32_irk_step(int s, const float *a, const float 
     return LCG_OK;
 }
 
-/* In-place Cholesky factor of the symmetric positive definite A (2 x 2, row-major; lower
- * triangle used). Returns 0 when a pivot is not positive. */
-static int lcg_elastic_pendulum_f32_cholesky(float *A)
-{
-    int i, j, k;
-    for (j = 0; j < 2; ++j) {
-        float d = A[j * 2 + j];
-        for (k = 0; k < j; ++k) d -= A[j * 2 + k] * A[j * 2 + k];
-        if (!(d > 0.0F)) return 0;
-        d = sqrtf(d);
-        A[j * 2 + j] = d;
-        for (i = j + 1; i < 2; ++i) {
-            float s = A[i * 2 + j];
-            for (k = 0; k < j; ++k) s -= A[i * 2 + k] * A[j * 2 + k];
-            A[i * 2 + j] = s / d;
-        }
-    }
-    return 1;
-}
-
-/* Solve L L^T y = b in place with the factor from lcg_elastic_pendulum_f32_cholesky. */
-static void lcg_elastic_pendulum_f32_cholesky_solve(const float *L, float *b)
-{
-    int i, k;
-    for (i = 0; i < 2; ++i) {
-        for (k = 0; k < i; ++k) b[i] -= L[i * 2 + k] * b[k];
-        b[i] /= L[i * 2 + i];
-    }
-    for (i = 2 - 1; i >= 0; --i) {
-        for (k = i + 1; k < 2; ++k) b[i] -= L[k * 2 + i] * b[k];
-        b[i] /= L[i * 2 + i];
-    }
-}
-
 /* Symplectic Euler for H(q, p) = 1/2 p^T M(q)^-1 p + V(q) with p = M(q) u (Hairer, Lubich,
  * Wanner, Geometric Numerical Integration, Thm. VI.3.3), non-potential forces in G:
  *   M(q) v = p + h G(q, v)   (v by fixed-point iteration),  q+ = q + h v,  p+ = M(q) v,
@@ -446,7 +452,7 @@ static int lcg_elastic_pendulum_f32_symplectic_euler_step(float t, float *x, con
         for (k = 0; k < 2; ++k) acc += factor[i * 2 + k] * x[2 + k];
         momentum[i] = acc;
     }
-    if (!lcg_elastic_pendulum_f32_cholesky(factor)) return lcg_elastic_pendulum_f32_pivot_failure(x);
+    if (lcg_elastic_pendulum_f32_spd_factor(factor, 2, 0.0F) != 1) return lcg_elastic_pendulum_f32_pivot_failure(x);
     for (i = 0; i < 2; ++i) v[i] = x[2 + i];
     for (i = 0; i < 2; ++i) xs[i] = x[i];
     for (iteration = 0; iteration < 30; ++iteration) {
@@ -454,7 +460,7 @@ static int lcg_elastic_pendulum_f32_symplectic_euler_step(float t, float *x, con
         for (i = 0; i < 2; ++i) xs[2 + i] = v[i];
         lcg_elastic_pendulum_f32_momentum(t, xs, p, spare, G);
         for (i = 0; i < 2; ++i) b[i] = momentum[i] + h * G[i];
-        lcg_elastic_pendulum_f32_cholesky_solve(factor, b);
+        lcg_elastic_pendulum_f32_spd_solve(factor, b, 2);
         for (i = 0; i < 2; ++i) {
             const float change = fabsf(b[i] - v[i]) / (1.0F + fabsf(v[i]));
             if (change > size) size = change;
@@ -471,8 +477,8 @@ static int lcg_elastic_pendulum_f32_symplectic_euler_step(float t, float *x, con
         x[i] += h * v[i];
     }
     lcg_elastic_pendulum_f32_momentum(t + h, x, p, next, G);
-    if (!lcg_elastic_pendulum_f32_cholesky(next)) return lcg_elastic_pendulum_f32_pivot_failure(x);
-    lcg_elastic_pendulum_f32_cholesky_solve(next, momentum);
+    if (lcg_elastic_pendulum_f32_spd_factor(next, 2, 0.0F) != 1) return lcg_elastic_pendulum_f32_pivot_failure(x);
+    lcg_elastic_pendulum_f32_spd_solve(next, momentum, 2);
     for (i = 0; i < 2; ++i) x[2 + i] = momentum[i];
     return LCG_OK;
 }

@@ -20,16 +20,54 @@ static int lcg_four_bar_pivot_failure(const double *x)
     return LCG_SINGULAR_MASS_MATRIX;
 }
 
-/* Solve (A M^-1 A^T) lam = A z - gamma with Y = M^-1 A^T (3 x 2) and z = M^-1 F
- * by Cholesky; returns 0 when a pivot falls below 1e-12 of the largest diagonal
- * entry: the constraint Jacobian A (2 x 3) has lost rank; -1 when A M^-1 A^T
- * overflowed (a diverged state, not a singular configuration). */
+/* Cholesky factor, in place, of the symmetric positive definite A (dim x dim, row-major, lower
+ * triangle used). Returns 1; 0 when a pivot is not above tolerance times the largest diagonal
+ * entry (rank lost); -1 when the entries overflowed (a diverged state). */
+static int lcg_four_bar_spd_factor(double *A, int dim, double tolerance)
+{
+    double scale = 0.0;
+    int i, j, k;
+    for (i = 0; i < dim; ++i) {
+        if (A[i * dim + i] > scale) scale = A[i * dim + i];
+    }
+    if (!isfinite(scale)) return -1;
+    for (j = 0; j < dim; ++j) {
+        double d = A[j * dim + j];
+        for (k = 0; k < j; ++k) d -= A[j * dim + k] * A[j * dim + k];
+        if (!(d > tolerance * scale)) return isfinite(d) ? 0 : -1;
+        d = sqrt(d);
+        A[j * dim + j] = d;
+        for (i = j + 1; i < dim; ++i) {
+            double acc = A[i * dim + j];
+            for (k = 0; k < j; ++k) acc -= A[i * dim + k] * A[j * dim + k];
+            A[i * dim + j] = acc / d;
+        }
+    }
+    return 1;
+}
+
+/* Solve L L^T y = b in place with the factor from lcg_four_bar_spd_factor. */
+static void lcg_four_bar_spd_solve(const double *L, double *b, int dim)
+{
+    int i, k;
+    for (i = 0; i < dim; ++i) {
+        for (k = 0; k < i; ++k) b[i] -= L[i * dim + k] * b[k];
+        b[i] /= L[i * dim + i];
+    }
+    for (i = dim - 1; i >= 0; --i) {
+        for (k = i + 1; k < dim; ++k) b[i] -= L[k * dim + i] * b[k];
+        b[i] /= L[i * dim + i];
+    }
+}
+
+/* Solve (A M^-1 A^T) lam = A z - gamma with Y = M^-1 A^T (3 x 2) and z = M^-1 F;
+ * returns 1, 0 when the constraint Jacobian A (2 x 3) has lost rank (pivot below
+ * 1e-12 of the largest), -1 when A M^-1 A^T overflowed (a diverged state). */
 static int lcg_four_bar_multipliers_solve(const double *A, const double *Y, const double *z,
                                           const double *C, double *lam)
 {
     double S[4];
-    double scale = 0.0;
-    int i, j, k;
+    int i, j, k, code;
     for (i = 0; i < 2; ++i) {
         double r = -C[i];
         for (k = 0; k < 3; ++k) r += A[i * 3 + k] * z[k];
@@ -39,29 +77,10 @@ static int lcg_four_bar_multipliers_solve(const double *A, const double *Y, cons
             for (k = 0; k < 3; ++k) acc += A[i * 3 + k] * Y[k * 2 + j];
             S[i * 2 + j] = acc;
         }
-        if (S[i * 2 + i] > scale) scale = S[i * 2 + i];
     }
-    if (!isfinite(scale)) return -1;
-    for (j = 0; j < 2; ++j) {
-        double d = S[j * 2 + j];
-        for (k = 0; k < j; ++k) d -= S[j * 2 + k] * S[j * 2 + k];
-        if (!(d > 1e-12 * scale)) return isfinite(d) ? 0 : -1;
-        d = sqrt(d);
-        S[j * 2 + j] = d;
-        for (i = j + 1; i < 2; ++i) {
-            double acc = S[i * 2 + j];
-            for (k = 0; k < j; ++k) acc -= S[i * 2 + k] * S[j * 2 + k];
-            S[i * 2 + j] = acc / d;
-        }
-    }
-    for (i = 0; i < 2; ++i) {
-        for (k = 0; k < i; ++k) lam[i] -= S[i * 2 + k] * lam[k];
-        lam[i] /= S[i * 2 + i];
-    }
-    for (i = 2 - 1; i >= 0; --i) {
-        for (k = i + 1; k < 2; ++k) lam[i] -= S[k * 2 + i] * lam[k];
-        lam[i] /= S[i * 2 + i];
-    }
+    code = lcg_four_bar_spd_factor(S, 2, 1e-12);
+    if (code != 1) return code;
+    lcg_four_bar_spd_solve(S, lam, 2);
     return 1;
 }
 
@@ -380,12 +399,10 @@ void lcg_four_bar_residuals(double t, const double *x, const double *p, double *
     }
 }
 
-/* Minimum-norm correction: solve (A A^T) y = b by Cholesky, then v -= A^T y. Returns 0 when A
- * has lost rank. */
+/* Minimum-norm correction: solve (A A^T) y = b, then v -= A^T y. Returns 0 when A has lost rank. */
 static int lcg_four_bar_project_onto(const double *A, double *b, double *v)
 {
     double S[4];
-    double scale = 0.0;
     int i, j, k;
     for (i = 0; i < 2; ++i) {
         for (j = 0; j <= i; ++j) {
@@ -393,28 +410,9 @@ static int lcg_four_bar_project_onto(const double *A, double *b, double *v)
             for (k = 0; k < 3; ++k) acc += A[i * 3 + k] * A[j * 3 + k];
             S[i * 2 + j] = acc;
         }
-        if (S[i * 2 + i] > scale) scale = S[i * 2 + i];
     }
-    for (j = 0; j < 2; ++j) {
-        double d = S[j * 2 + j];
-        for (k = 0; k < j; ++k) d -= S[j * 2 + k] * S[j * 2 + k];
-        if (!(d > 1e-12 * scale)) return 0;
-        d = sqrt(d);
-        S[j * 2 + j] = d;
-        for (i = j + 1; i < 2; ++i) {
-            double acc = S[i * 2 + j];
-            for (k = 0; k < j; ++k) acc -= S[i * 2 + k] * S[j * 2 + k];
-            S[i * 2 + j] = acc / d;
-        }
-    }
-    for (i = 0; i < 2; ++i) {
-        for (k = 0; k < i; ++k) b[i] -= S[i * 2 + k] * b[k];
-        b[i] /= S[i * 2 + i];
-    }
-    for (i = 2 - 1; i >= 0; --i) {
-        for (k = i + 1; k < 2; ++k) b[i] -= S[k * 2 + i] * b[k];
-        b[i] /= S[i * 2 + i];
-    }
+    if (lcg_four_bar_spd_factor(S, 2, 1e-12) != 1) return 0;
+    lcg_four_bar_spd_solve(S, b, 2);
     for (k = 0; k < 3; ++k) {
         double acc = 0.0;
         for (i = 0; i < 2; ++i) acc += A[i * 3 + k] * b[i];

@@ -20,6 +20,46 @@ static int lcg_pendulum_chain_5_pivot_failure(const double *x)
     return LCG_SINGULAR_MASS_MATRIX;
 }
 
+/* Cholesky factor, in place, of the symmetric positive definite A (dim x dim, row-major, lower
+ * triangle used). Returns 1; 0 when a pivot is not above tolerance times the largest diagonal
+ * entry (rank lost); -1 when the entries overflowed (a diverged state). */
+static int lcg_pendulum_chain_5_spd_factor(double *A, int dim, double tolerance)
+{
+    double scale = 0.0;
+    int i, j, k;
+    for (i = 0; i < dim; ++i) {
+        if (A[i * dim + i] > scale) scale = A[i * dim + i];
+    }
+    if (!isfinite(scale)) return -1;
+    for (j = 0; j < dim; ++j) {
+        double d = A[j * dim + j];
+        for (k = 0; k < j; ++k) d -= A[j * dim + k] * A[j * dim + k];
+        if (!(d > tolerance * scale)) return isfinite(d) ? 0 : -1;
+        d = sqrt(d);
+        A[j * dim + j] = d;
+        for (i = j + 1; i < dim; ++i) {
+            double acc = A[i * dim + j];
+            for (k = 0; k < j; ++k) acc -= A[i * dim + k] * A[j * dim + k];
+            A[i * dim + j] = acc / d;
+        }
+    }
+    return 1;
+}
+
+/* Solve L L^T y = b in place with the factor from lcg_pendulum_chain_5_spd_factor. */
+static void lcg_pendulum_chain_5_spd_solve(const double *L, double *b, int dim)
+{
+    int i, k;
+    for (i = 0; i < dim; ++i) {
+        for (k = 0; k < i; ++k) b[i] -= L[i * dim + k] * b[k];
+        b[i] /= L[i * dim + i];
+    }
+    for (i = dim - 1; i >= 0; --i) {
+        for (k = i + 1; k < dim; ++k) b[i] -= L[k * dim + i] * b[k];
+        b[i] /= L[i * dim + i];
+    }
+}
+
 /* K, M and F with shared temporaries, then M ud = F by LDL^T. */
 static int lcg_pendulum_chain_5_dynamics(double t, const double *x, const double *p, double *qd, double *ud)
 {
@@ -1059,40 +1099,6 @@ static int lcg_pendulum_chain_5_irk_step(int s, const double *a, const double *b
     return LCG_OK;
 }
 
-/* In-place Cholesky factor of the symmetric positive definite A (5 x 5, row-major; lower
- * triangle used). Returns 0 when a pivot is not positive. */
-static int lcg_pendulum_chain_5_cholesky(double *A)
-{
-    int i, j, k;
-    for (j = 0; j < 5; ++j) {
-        double d = A[j * 5 + j];
-        for (k = 0; k < j; ++k) d -= A[j * 5 + k] * A[j * 5 + k];
-        if (!(d > 0.0)) return 0;
-        d = sqrt(d);
-        A[j * 5 + j] = d;
-        for (i = j + 1; i < 5; ++i) {
-            double s = A[i * 5 + j];
-            for (k = 0; k < j; ++k) s -= A[i * 5 + k] * A[j * 5 + k];
-            A[i * 5 + j] = s / d;
-        }
-    }
-    return 1;
-}
-
-/* Solve L L^T y = b in place with the factor from lcg_pendulum_chain_5_cholesky. */
-static void lcg_pendulum_chain_5_cholesky_solve(const double *L, double *b)
-{
-    int i, k;
-    for (i = 0; i < 5; ++i) {
-        for (k = 0; k < i; ++k) b[i] -= L[i * 5 + k] * b[k];
-        b[i] /= L[i * 5 + i];
-    }
-    for (i = 5 - 1; i >= 0; --i) {
-        for (k = i + 1; k < 5; ++k) b[i] -= L[k * 5 + i] * b[k];
-        b[i] /= L[i * 5 + i];
-    }
-}
-
 /* Symplectic Euler for H(q, p) = 1/2 p^T M(q)^-1 p + V(q) with p = M(q) u (Hairer, Lubich,
  * Wanner, Geometric Numerical Integration, Thm. VI.3.3), non-potential forces in G:
  *   M(q) v = p + h G(q, v)   (v by fixed-point iteration),  q+ = q + h v,  p+ = M(q) v,
@@ -1116,7 +1122,7 @@ static int lcg_pendulum_chain_5_symplectic_euler_step(double t, double *x, const
         for (k = 0; k < 5; ++k) acc += factor[i * 5 + k] * x[5 + k];
         momentum[i] = acc;
     }
-    if (!lcg_pendulum_chain_5_cholesky(factor)) return lcg_pendulum_chain_5_pivot_failure(x);
+    if (lcg_pendulum_chain_5_spd_factor(factor, 5, 0.0) != 1) return lcg_pendulum_chain_5_pivot_failure(x);
     for (i = 0; i < 5; ++i) v[i] = x[5 + i];
     for (i = 0; i < 5; ++i) xs[i] = x[i];
     for (iteration = 0; iteration < 30; ++iteration) {
@@ -1124,7 +1130,7 @@ static int lcg_pendulum_chain_5_symplectic_euler_step(double t, double *x, const
         for (i = 0; i < 5; ++i) xs[5 + i] = v[i];
         lcg_pendulum_chain_5_momentum(t, xs, p, spare, G);
         for (i = 0; i < 5; ++i) b[i] = momentum[i] + h * G[i];
-        lcg_pendulum_chain_5_cholesky_solve(factor, b);
+        lcg_pendulum_chain_5_spd_solve(factor, b, 5);
         for (i = 0; i < 5; ++i) {
             const double change = fabs(b[i] - v[i]) / (1.0 + fabs(v[i]));
             if (change > size) size = change;
@@ -1141,8 +1147,8 @@ static int lcg_pendulum_chain_5_symplectic_euler_step(double t, double *x, const
         x[i] += h * v[i];
     }
     lcg_pendulum_chain_5_momentum(t + h, x, p, next, G);
-    if (!lcg_pendulum_chain_5_cholesky(next)) return lcg_pendulum_chain_5_pivot_failure(x);
-    lcg_pendulum_chain_5_cholesky_solve(next, momentum);
+    if (lcg_pendulum_chain_5_spd_factor(next, 5, 0.0) != 1) return lcg_pendulum_chain_5_pivot_failure(x);
+    lcg_pendulum_chain_5_spd_solve(next, momentum, 5);
     for (i = 0; i < 5; ++i) x[5 + i] = momentum[i];
     return LCG_OK;
 }

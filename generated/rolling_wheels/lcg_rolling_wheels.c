@@ -20,6 +20,46 @@ static int lcg_rolling_wheels_pivot_failure(const double *x)
     return LCG_SINGULAR_MASS_MATRIX;
 }
 
+/* Cholesky factor, in place, of the symmetric positive definite A (dim x dim, row-major, lower
+ * triangle used). Returns 1; 0 when a pivot is not above tolerance times the largest diagonal
+ * entry (rank lost); -1 when the entries overflowed (a diverged state). */
+static int lcg_rolling_wheels_spd_factor(double *A, int dim, double tolerance)
+{
+    double scale = 0.0;
+    int i, j, k;
+    for (i = 0; i < dim; ++i) {
+        if (A[i * dim + i] > scale) scale = A[i * dim + i];
+    }
+    if (!isfinite(scale)) return -1;
+    for (j = 0; j < dim; ++j) {
+        double d = A[j * dim + j];
+        for (k = 0; k < j; ++k) d -= A[j * dim + k] * A[j * dim + k];
+        if (!(d > tolerance * scale)) return isfinite(d) ? 0 : -1;
+        d = sqrt(d);
+        A[j * dim + j] = d;
+        for (i = j + 1; i < dim; ++i) {
+            double acc = A[i * dim + j];
+            for (k = 0; k < j; ++k) acc -= A[i * dim + k] * A[j * dim + k];
+            A[i * dim + j] = acc / d;
+        }
+    }
+    return 1;
+}
+
+/* Solve L L^T y = b in place with the factor from lcg_rolling_wheels_spd_factor. */
+static void lcg_rolling_wheels_spd_solve(const double *L, double *b, int dim)
+{
+    int i, k;
+    for (i = 0; i < dim; ++i) {
+        for (k = 0; k < i; ++k) b[i] -= L[i * dim + k] * b[k];
+        b[i] /= L[i * dim + i];
+    }
+    for (i = dim - 1; i >= 0; --i) {
+        for (k = i + 1; k < dim; ++k) b[i] -= L[k * dim + i] * b[k];
+        b[i] /= L[i * dim + i];
+    }
+}
+
 /* K, M and F with shared temporaries, then M ud = F by LDL^T. */
 static int lcg_rolling_wheels_dynamics(double t, const double *x, const double *p, double *qd, double *ud)
 {
@@ -329,40 +369,6 @@ static int lcg_rolling_wheels_irk_step(int s, const double *a, const double *b, 
     return LCG_OK;
 }
 
-/* In-place Cholesky factor of the symmetric positive definite A (1 x 1, row-major; lower
- * triangle used). Returns 0 when a pivot is not positive. */
-static int lcg_rolling_wheels_cholesky(double *A)
-{
-    int i, j, k;
-    for (j = 0; j < 1; ++j) {
-        double d = A[j * 1 + j];
-        for (k = 0; k < j; ++k) d -= A[j * 1 + k] * A[j * 1 + k];
-        if (!(d > 0.0)) return 0;
-        d = sqrt(d);
-        A[j * 1 + j] = d;
-        for (i = j + 1; i < 1; ++i) {
-            double s = A[i * 1 + j];
-            for (k = 0; k < j; ++k) s -= A[i * 1 + k] * A[j * 1 + k];
-            A[i * 1 + j] = s / d;
-        }
-    }
-    return 1;
-}
-
-/* Solve L L^T y = b in place with the factor from lcg_rolling_wheels_cholesky. */
-static void lcg_rolling_wheels_cholesky_solve(const double *L, double *b)
-{
-    int i, k;
-    for (i = 0; i < 1; ++i) {
-        for (k = 0; k < i; ++k) b[i] -= L[i * 1 + k] * b[k];
-        b[i] /= L[i * 1 + i];
-    }
-    for (i = 1 - 1; i >= 0; --i) {
-        for (k = i + 1; k < 1; ++k) b[i] -= L[k * 1 + i] * b[k];
-        b[i] /= L[i * 1 + i];
-    }
-}
-
 /* Symplectic Euler for H(q, p) = 1/2 p^T M(q)^-1 p + V(q) with p = M(q) u (Hairer, Lubich,
  * Wanner, Geometric Numerical Integration, Thm. VI.3.3), non-potential forces in G:
  *   M(q) v = p + h G(q, v)   (v by fixed-point iteration),  q+ = q + h v,  p+ = M(q) v,
@@ -386,7 +392,7 @@ static int lcg_rolling_wheels_symplectic_euler_step(double t, double *x, const d
         for (k = 0; k < 1; ++k) acc += factor[i * 1 + k] * x[1 + k];
         momentum[i] = acc;
     }
-    if (!lcg_rolling_wheels_cholesky(factor)) return lcg_rolling_wheels_pivot_failure(x);
+    if (lcg_rolling_wheels_spd_factor(factor, 1, 0.0) != 1) return lcg_rolling_wheels_pivot_failure(x);
     for (i = 0; i < 1; ++i) v[i] = x[1 + i];
     for (i = 0; i < 1; ++i) xs[i] = x[i];
     for (iteration = 0; iteration < 30; ++iteration) {
@@ -394,7 +400,7 @@ static int lcg_rolling_wheels_symplectic_euler_step(double t, double *x, const d
         for (i = 0; i < 1; ++i) xs[1 + i] = v[i];
         lcg_rolling_wheels_momentum(t, xs, p, spare, G);
         for (i = 0; i < 1; ++i) b[i] = momentum[i] + h * G[i];
-        lcg_rolling_wheels_cholesky_solve(factor, b);
+        lcg_rolling_wheels_spd_solve(factor, b, 1);
         for (i = 0; i < 1; ++i) {
             const double change = fabs(b[i] - v[i]) / (1.0 + fabs(v[i]));
             if (change > size) size = change;
@@ -411,8 +417,8 @@ static int lcg_rolling_wheels_symplectic_euler_step(double t, double *x, const d
         x[i] += h * v[i];
     }
     lcg_rolling_wheels_momentum(t + h, x, p, next, G);
-    if (!lcg_rolling_wheels_cholesky(next)) return lcg_rolling_wheels_pivot_failure(x);
-    lcg_rolling_wheels_cholesky_solve(next, momentum);
+    if (lcg_rolling_wheels_spd_factor(next, 1, 0.0) != 1) return lcg_rolling_wheels_pivot_failure(x);
+    lcg_rolling_wheels_spd_solve(next, momentum, 1);
     for (i = 0; i < 1; ++i) x[1 + i] = momentum[i];
     return LCG_OK;
 }

@@ -20,16 +20,54 @@ static int lcg_slider_crank_f32_pivot_failure(const float *x)
     return LCG_SINGULAR_MASS_MATRIX;
 }
 
-/* Solve (A M^-1 A^T) lam = A z - gamma with Y = M^-1 A^T (5 x 4) and z = M^-1 F
- * by Cholesky; returns 0 when a pivot falls below 1e-06F of the largest diagonal
- * entry: the constraint Jacobian A (4 x 5) has lost rank; -1 when A M^-1 A^T
- * overflowed (a diverged state, not a singular configuration). */
+/* Cholesky factor, in place, of the symmetric positive definite A (dim x dim, row-major, lower
+ * triangle used). Returns 1; 0 when a pivot is not above tolerance times the largest diagonal
+ * entry (rank lost); -1 when the entries overflowed (a diverged state). */
+static int lcg_slider_crank_f32_spd_factor(float *A, int dim, float tolerance)
+{
+    float scale = 0.0F;
+    int i, j, k;
+    for (i = 0; i < dim; ++i) {
+        if (A[i * dim + i] > scale) scale = A[i * dim + i];
+    }
+    if (!isfinite(scale)) return -1;
+    for (j = 0; j < dim; ++j) {
+        float d = A[j * dim + j];
+        for (k = 0; k < j; ++k) d -= A[j * dim + k] * A[j * dim + k];
+        if (!(d > tolerance * scale)) return isfinite(d) ? 0 : -1;
+        d = sqrtf(d);
+        A[j * dim + j] = d;
+        for (i = j + 1; i < dim; ++i) {
+            float acc = A[i * dim + j];
+            for (k = 0; k < j; ++k) acc -= A[i * dim + k] * A[j * dim + k];
+            A[i * dim + j] = acc / d;
+        }
+    }
+    return 1;
+}
+
+/* Solve L L^T y = b in place with the factor from lcg_slider_crank_f32_spd_factor. */
+static void lcg_slider_crank_f32_spd_solve(const float *L, float *b, int dim)
+{
+    int i, k;
+    for (i = 0; i < dim; ++i) {
+        for (k = 0; k < i; ++k) b[i] -= L[i * dim + k] * b[k];
+        b[i] /= L[i * dim + i];
+    }
+    for (i = dim - 1; i >= 0; --i) {
+        for (k = i + 1; k < dim; ++k) b[i] -= L[k * dim + i] * b[k];
+        b[i] /= L[i * dim + i];
+    }
+}
+
+/* Solve (A M^-1 A^T) lam = A z - gamma with Y = M^-1 A^T (5 x 4) and z = M^-1 F;
+ * returns 1, 0 when the constraint Jacobian A (4 x 5) has lost rank (pivot below
+ * 1e-06F of the largest), -1 when A M^-1 A^T overflowed (a diverged state). */
 static int lcg_slider_crank_f32_multipliers_solve(const float *A, const float *Y, const float *z,
                                           const float *C, float *lam)
 {
     float S[16];
-    float scale = 0.0F;
-    int i, j, k;
+    int i, j, k, code;
     for (i = 0; i < 4; ++i) {
         float r = -C[i];
         for (k = 0; k < 5; ++k) r += A[i * 5 + k] * z[k];
@@ -39,29 +77,10 @@ static int lcg_slider_crank_f32_multipliers_solve(const float *A, const float *Y
             for (k = 0; k < 5; ++k) acc += A[i * 5 + k] * Y[k * 4 + j];
             S[i * 4 + j] = acc;
         }
-        if (S[i * 4 + i] > scale) scale = S[i * 4 + i];
     }
-    if (!isfinite(scale)) return -1;
-    for (j = 0; j < 4; ++j) {
-        float d = S[j * 4 + j];
-        for (k = 0; k < j; ++k) d -= S[j * 4 + k] * S[j * 4 + k];
-        if (!(d > 1e-06F * scale)) return isfinite(d) ? 0 : -1;
-        d = sqrtf(d);
-        S[j * 4 + j] = d;
-        for (i = j + 1; i < 4; ++i) {
-            float acc = S[i * 4 + j];
-            for (k = 0; k < j; ++k) acc -= S[i * 4 + k] * S[j * 4 + k];
-            S[i * 4 + j] = acc / d;
-        }
-    }
-    for (i = 0; i < 4; ++i) {
-        for (k = 0; k < i; ++k) lam[i] -= S[i * 4 + k] * lam[k];
-        lam[i] /= S[i * 4 + i];
-    }
-    for (i = 4 - 1; i >= 0; --i) {
-        for (k = i + 1; k < 4; ++k) lam[i] -= S[k * 4 + i] * lam[k];
-        lam[i] /= S[i * 4 + i];
-    }
+    code = lcg_slider_crank_f32_spd_factor(S, 4, 1e-06F);
+    if (code != 1) return code;
+    lcg_slider_crank_f32_spd_solve(S, lam, 4);
     return 1;
 }
 
@@ -414,12 +433,10 @@ void lcg_slider_crank_f32_residuals(float t, const float *x, const float *p, flo
     }
 }
 
-/* Minimum-norm correction: solve (A A^T) y = b by Cholesky, then v -= A^T y. Returns 0 when A
- * has lost rank. */
+/* Minimum-norm correction: solve (A A^T) y = b, then v -= A^T y. Returns 0 when A has lost rank. */
 static int lcg_slider_crank_f32_project_onto(const float *A, float *b, float *v)
 {
     float S[16];
-    float scale = 0.0F;
     int i, j, k;
     for (i = 0; i < 4; ++i) {
         for (j = 0; j <= i; ++j) {
@@ -427,28 +444,9 @@ static int lcg_slider_crank_f32_project_onto(const float *A, float *b, float *v)
             for (k = 0; k < 5; ++k) acc += A[i * 5 + k] * A[j * 5 + k];
             S[i * 4 + j] = acc;
         }
-        if (S[i * 4 + i] > scale) scale = S[i * 4 + i];
     }
-    for (j = 0; j < 4; ++j) {
-        float d = S[j * 4 + j];
-        for (k = 0; k < j; ++k) d -= S[j * 4 + k] * S[j * 4 + k];
-        if (!(d > 1e-06F * scale)) return 0;
-        d = sqrtf(d);
-        S[j * 4 + j] = d;
-        for (i = j + 1; i < 4; ++i) {
-            float acc = S[i * 4 + j];
-            for (k = 0; k < j; ++k) acc -= S[i * 4 + k] * S[j * 4 + k];
-            S[i * 4 + j] = acc / d;
-        }
-    }
-    for (i = 0; i < 4; ++i) {
-        for (k = 0; k < i; ++k) b[i] -= S[i * 4 + k] * b[k];
-        b[i] /= S[i * 4 + i];
-    }
-    for (i = 4 - 1; i >= 0; --i) {
-        for (k = i + 1; k < 4; ++k) b[i] -= S[k * 4 + i] * b[k];
-        b[i] /= S[i * 4 + i];
-    }
+    if (lcg_slider_crank_f32_spd_factor(S, 4, 1e-06F) != 1) return 0;
+    lcg_slider_crank_f32_spd_solve(S, b, 4);
     for (k = 0; k < 5; ++k) {
         float acc = 0.0F;
         for (i = 0; i < 4; ++i) acc += A[i * 5 + k] * b[i];

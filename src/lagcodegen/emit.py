@@ -194,6 +194,9 @@ def render_sources(system: ReducedSystem, precision: str = "double", model_name:
                      tuple(m["name"] for m in steppers["methods"]))
     context = _context(system, names, layout, functions, real) | steppers
     context["prototypes"] = context["prototypes"] + stepper_prototypes
+    context["needs_spd"] = bool((context["has_constraints"] and (context["has_dynamics"]
+                                                                 or context["has_constraint_terms"]))
+                                or context["has_symplectic_euler"])
     env = _environment()
     header_name = f"{names.prefix}.h"
     source_name = f"{names.prefix}.c"
