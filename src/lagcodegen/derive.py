@@ -20,7 +20,10 @@ body-frame angular velocity w = Jw u + w_t, alpha0 = (dw/dq) u + dw/dt, inertia 
 
 (Lurie, Analytical Mechanics, ch. 3; Kane & Levinson, Dynamics: Theory and Applications, ch. 4).
 Terms shared by many bodies are grouped, so M_jk of a chain comes out as
-(m_k + ... + m_n) * (...) rather than n separate products.
+(m_k + ... + m_n) * (...) rather than n separate products. The inertia part of F stays
+nested, -J^T (sum of m_i a0_i over the bodies sharing a position term), so that CSE finds a
+chain's prefix and suffix sums (O(n) per coordinate); terms that depend on t are expanded
+instead, so that the sin^2 + cos^2 of a frame spun in time cancels and t drops out.
 """
 from __future__ import annotations
 
@@ -310,11 +313,12 @@ def _derive_from_bodies(model: Model) -> EquationsOfMotion:
     pair_mass: dict = {}   # ((component, s), (component, s')) -> masses of bodies holding both terms
     term_mass: dict = {}   # (component, s) -> masses of bodies holding s
     M_sum, F_sum = GroupedSum(), GroupedSum()
-    T = []
+    T, body_terms = [], []
     for body in model.bodies:
         m = to_plain(body.mass, f"mass of {body.name}")
         r = to_plain(components(body.masscenter.pos_from(O), N), f"position of {body.name}")
         terms = [(c, s) for c in range(3) for s in sp.Add.make_args(r[c]) if s != 0]
+        body_terms.append((m, terms))
         for a in terms:
             term_mass.setdefault(a, []).append(m)
             for b in terms:
@@ -336,11 +340,10 @@ def _derive_from_bodies(model: Model) -> EquationsOfMotion:
         a, b = _term_motion(s, q, u, t, motion), _term_motion(s2, q, u, t, motion)
         T.append(mass * a.velocity * b.velocity / 2)
         for j, dj in a.partials.items():
-            if b.acceleration != 0:
-                F_sum.add(j, -mass, dj * b.acceleration)
             for k, dk in b.partials.items():
                 if k <= j:
                     M_sum.add((j, k), mass, dj * dk)
+    inertia = _inertia_forces(body_terms, motion, F_sum, q, u, t, n)
 
     for load in model.loads:
         _add_load(load, F_sum, to_plain, N, O, q, u)
@@ -355,8 +358,42 @@ def _derive_from_bodies(model: Model) -> EquationsOfMotion:
     F = sp.zeros(n, 1)
     for j, c in enumerate(coords):
         Q = to_plain(model.generalized_forces.get(c, 0), f"generalized force on {c}")
-        F[j] = F_sum.value(j) - Vx.diff(q[j]) - R.diff(u[j]) + Q
+        F[j] = F_sum.value(j) + inertia[j] - Vx.diff(q[j]) - R.diff(u[j]) + Q
     return _assemble(model, coords, speeds, q, u, M, F, sp.Matrix(u), sp.Add(*T), sp.Add(Vx, *V), to_plain)
+
+
+def _inertia_forces(body_terms, motion, F_sum, q, u, t, n) -> list:
+    """Speed-dependent generalized inertia forces -sum_i m_i a0_i . dr_i/dq_j, kept nested.
+
+    a0_i (the part of body i's acceleration not proportional to qdd) is summed once per body
+    and weighted by its mass once per set of bodies sharing a position term, so a chain's
+    Coriolis and centripetal terms cost O(n) sums per coordinate instead of a product per pair
+    of position terms; CSE then shares the prefix and suffix sums.
+    """
+    acceleration = {}  # (component, body index) -> a0 component
+    holders: dict = {}  # (component, term) -> body indices holding it
+    for i, (_, terms) in enumerate(body_terms):
+        for c, s in terms:
+            acceleration.setdefault((c, i), []).append(_term_motion(s, q, u, t, motion).acceleration)
+            holders.setdefault((c, s), []).append(i)
+    acceleration = {key: sp.Add(*parts) for key, parts in acceleration.items()}
+    weighted: dict = {}  # (component, bodies) -> sum of m_i a0_i
+    forces = [[] for _ in range(n)]
+    for (c, s), bodies in holders.items():
+        if t in s.free_symbols or any(t in acceleration[(c, i)].free_symbols for i in bodies):
+            # expanded, so that sin^2 + cos^2 of a frame spun in time merge and t drops out
+            for j, d in _term_motion(s, q, u, t, motion).partials.items():
+                for i in bodies:
+                    F_sum.add(j, -body_terms[i][0], d * acceleration[(c, i)])
+            continue
+        key = (c, tuple(bodies))
+        if key not in weighted:
+            weighted[key] = sp.Add(*[body_terms[i][0] * acceleration[(c, i)] for i in bodies])
+        if weighted[key] == 0:
+            continue
+        for j, d in _term_motion(s, q, u, t, motion).partials.items():
+            forces[j].append(-d * weighted[key])
+    return [sp.Add(*f) for f in forces]
 
 
 def _add_rotation(body, M_sum, F_sum, T, to_plain, N, q, u, t) -> None:
