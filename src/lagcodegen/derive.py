@@ -132,12 +132,12 @@ class EquationsOfMotion:
 
 def derive_equations(model: Model) -> EquationsOfMotion:
     """Derive `EquationsOfMotion` from a validated `Model`, by its route."""
-    from . import importers  # sympy-model route lives beside, not inside, the core routes
-
     if model.route == ROUTE_ENERGIES:
         return _derive_from_energies(model)
     if model.route == ROUTE_BODIES:
         return _derive_from_bodies(model)
+    from . import importers  # sympy-model route lives beside, not inside, the core routes
+
     return importers.derive_from_sympy(model)
 
 
