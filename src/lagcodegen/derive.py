@@ -175,7 +175,8 @@ def make_substitution(coordinates, speeds, q, u, what: str) -> Callable:
 def _lagrange_symbols(model: Model):
     """Coordinates, speeds qd, their plain symbols q, u and the substitution into them."""
     coords = model.coordinates
-    speeds = tuple(c.diff(TIME) for c in coords)
+    # the same Derivative objects c.diff(t) builds, without the cost of evaluating them
+    speeds = tuple(sp.Derivative(c, TIME, evaluate=False) for c in coords)
     q, u = plain_symbols(coords, speeds, model.parameters)
     return coords, speeds, q, u, make_substitution(coords, speeds, q, u, "model")
 
@@ -338,12 +339,12 @@ def _derive_from_bodies(model: Model) -> EquationsOfMotion:
     for ((_, s), (_, s2)), masses in pair_mass.items():
         mass = sp.Add(*masses)
         a, b = _term_motion(s, q, u, t, motion), _term_motion(s2, q, u, t, motion)
-        T.append(mass * a.velocity * b.velocity / 2)
         for j, dj in a.partials.items():
             for k, dk in b.partials.items():
                 if k <= j:
                     M_sum.add((j, k), mass, dj * dk)
     inertia = _inertia_forces(body_terms, motion, F_sum, q, u, t, n)
+    T += [m * sp.Add(*[_square(v) for v in _velocity(terms, motion, q, u, t)]) / 2 for m, terms in body_terms]
 
     for load in model.loads:
         _add_load(load, F_sum, to_plain, N, O, q, u)
@@ -360,6 +361,19 @@ def _derive_from_bodies(model: Model) -> EquationsOfMotion:
         Q = to_plain(model.generalized_forces.get(c, 0), f"generalized force on {c}")
         F[j] = F_sum.value(j) + inertia[j] - Vx.diff(q[j]) - R.diff(u[j]) + Q
     return _assemble(model, coords, speeds, q, u, M, F, sp.Matrix(u), sp.Add(*T), sp.Add(Vx, *V), to_plain)
+
+
+def _velocity(terms, motion, q, u, t) -> list:
+    """Nonzero components of a mass centre's velocity, from its position terms."""
+    parts: dict = {}
+    for c, s in terms:
+        parts.setdefault(c, []).append(_term_motion(s, q, u, t, motion).velocity)
+    return [v for v in (sp.Add(*p) for p in parts.values()) if v != 0]
+
+
+def _square(v):
+    """v**2; a sum is squared unevaluated, as sympy would leave it, without its costly checks."""
+    return sp.Pow(v, 2, evaluate=False) if v.is_Add else v ** 2
 
 
 def _inertia_forces(body_terms, motion, F_sum, q, u, t, n) -> list:
