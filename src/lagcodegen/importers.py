@@ -9,12 +9,11 @@ from __future__ import annotations
 import sympy as sp
 import sympy.physics.mechanics as me
 
+from .equations import assemble, make_substitution, plain_symbols
 from .model import TIME, Model, ModelError
 
 
 def derive_from_sympy(model: Model):
-    from .derive import _assemble, make_substitution, plain_symbols
-
     method = _formed_method(model.sympy_model)
     coords = tuple(method.q)
     if isinstance(method, me.LagrangesMethod):
@@ -39,7 +38,7 @@ def derive_from_sympy(model: Model):
     F = to_plain(method.forcing.xreplace(qdot_table), "forcing")
     K = to_plain(kin_dynamic, "kinematic equations")
     T, V = _energies(method, model, to_plain)
-    eom = _assemble(model, coords, speeds, q, u, M, F, K, T, V, to_plain)
+    eom = assemble(model, coords, speeds, q, u, M, F, K, T, V, to_plain)
     return _with_route(eom, route)
 
 
