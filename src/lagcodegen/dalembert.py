@@ -103,7 +103,8 @@ def derive_from_bodies(model: Model) -> EquationsOfMotion:
     for j, c in enumerate(coords):
         Q = to_plain(model.generalized_forces.get(c, 0), f"generalized force on {c}")
         F[j] = F_sum.value(j) + inertia[j] - Vx.diff(q[j]) - R.diff(u[j]) + Q
-    return assemble(model, coords, speeds, q, u, M, F, sp.Matrix(u), sp.Add(*T), sp.Add(Vx, *V), to_plain)
+    return assemble(model, coords, speeds, q, u, M, F, sp.Matrix(u), sp.Add(*T), sp.Add(Vx, *V), to_plain,
+                    inputs_checked=True)
 
 
 def _velocity(terms, motion, q, u, t) -> list:

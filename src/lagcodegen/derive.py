@@ -52,7 +52,8 @@ def _derive_from_energies(model: Model) -> EquationsOfMotion:
     for j, c in enumerate(coords):
         Q = to_plain(model.generalized_forces.get(c, 0), f"generalized force on {c}")
         F[j] += -V.diff(q[j]) - R.diff(u[j]) + Q
-    return assemble(model, coords, speeds, q, u, M, F, sp.Matrix(u), T, V, to_plain)
+    return assemble(model, coords, speeds, q, u, M, F, sp.Matrix(u), T, V, to_plain,
+                    inputs_checked=True)
 
 
 def _quadratic_form(T, q, u, parameters):

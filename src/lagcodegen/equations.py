@@ -12,7 +12,7 @@ from sympy.core.function import AppliedUndef
 
 from .grouping import components
 from .holonomic import BAUMGARTE_ALPHA, BAUMGARTE_BETA, holonomic_terms
-from .model import TIME, Model, ModelError, ROUTE_BODIES, ROUTE_ENERGIES, check_declared
+from .model import TIME, Model, ModelError, ROUTE_BODIES, ROUTE_ENERGIES, check_declared, check_symbols_declared
 
 ROUTE_TITLES = {
     ROUTE_ENERGIES: "Lagrange II (energies)",
@@ -118,10 +118,12 @@ def plain_symbols(coordinates, speeds, parameters) -> tuple[tuple, tuple]:
     return q, u
 
 
-def make_substitution(coordinates, speeds, q, u, what: str) -> Callable:
-    """Return ``to_plain(expr)``: dynamicsymbols -> plain symbols, raising on leftovers."""
+def make_substitution(coordinates, speeds, q, u, what: str, parameters=None) -> Callable:
+    """Return ``to_plain(expr)``: dynamicsymbols -> plain symbols, raising on leftovers and, when
+    ``parameters`` is given, on free symbols that are not parameters, t, q or u."""
     table = dict(zip(speeds, u))  # Derivative(q(t), t) for the Lagrange routes, u(t) for Kane's
     table.update(zip(coordinates, q))
+    allowed = None if parameters is None else set(parameters) | {TIME} | set(q) | set(u)
 
     def to_plain(expr, where: str = what):
         expr = sp.sympify(expr)
@@ -130,6 +132,8 @@ def make_substitution(coordinates, speeds, q, u, what: str) -> Callable:
         if left:
             raise ModelError(f"{where} contains {', '.join(sorted(map(str, left)))}, which is not a "
                              f"coordinate or a speed of this model")
+        if allowed is not None:
+            check_symbols_declared(where, out.free_symbols - allowed, parameters)
         return out
     return to_plain
 
@@ -140,7 +144,7 @@ def lagrange_symbols(model: Model):
     # the same Derivative objects c.diff(t) builds, without the cost of evaluating them
     speeds = tuple(sp.Derivative(c, TIME, evaluate=False) for c in coords)
     q, u = plain_symbols(coords, speeds, model.parameters)
-    return coords, speeds, q, u, make_substitution(coords, speeds, q, u, "model")
+    return coords, speeds, q, u, make_substitution(coords, speeds, q, u, "model", model.parameters)
 
 def check_mass_matrix(M: sp.Matrix, coords, u) -> None:
     for j, c in enumerate(coords):
@@ -157,8 +161,11 @@ def check_mass_matrix(M: sp.Matrix, coords, u) -> None:
 
 
 # -- assembly ---------------------------------------------------------------------------------
-def assemble(model, coords, speeds, q, u, M, F, K, T, V, to_plain) -> EquationsOfMotion:
-    check_declared([("mass matrix", M), ("forcing", F)], model.parameters, (), extra=q + u)
+def assemble(model, coords, speeds, q, u, M, F, K, T, V, to_plain, inputs_checked=False) -> EquationsOfMotion:
+    """The equations object; M and F are searched for undeclared symbols unless every input
+    went through a ``to_plain`` that checks them (``inputs_checked``)."""
+    if not inputs_checked:
+        check_declared([("mass matrix", M), ("forcing", F)], model.parameters, (), extra=q + u)
     points = []
     for name, where in model.points.items():
         if isinstance(where, me.Point):

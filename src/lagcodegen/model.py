@@ -250,21 +250,27 @@ def check_declared(exprs, parameters, coordinates, extra=()) -> None:
     for what, expr in exprs:
         if expr is None:
             continue
-        extra = sorted(expr.free_symbols - allowed, key=str)
-        declared = {p.name: p for p in parameters}
-        for sym in extra:
-            if sym.name in declared:
-                raise ModelError(
-                    f"{what} uses symbol {sym.name!r} with assumptions {sym.assumptions0} but the declared "
-                    f"parameter {sym.name!r} has {declared[sym.name].assumptions0}; use the same Symbol")
-        if extra:
-            raise ModelError(
-                f"{what} uses symbols not declared as parameters: {', '.join(map(str, extra))} "
-                f"(declared: {', '.join(map(str, parameters)) or 'none'})")
+        check_symbols_declared(what, expr.free_symbols - allowed, parameters)
         unknown = sorted(_dynamic_functions(expr) - set(coordinates), key=str)
         if unknown:
             raise ModelError(f"{what} uses functions of time that are not coordinates: "
                              f"{', '.join(map(str, unknown))}")
+
+
+def check_symbols_declared(what: str, undeclared: set, parameters) -> None:
+    """Raise `ModelError` naming ``what`` when ``undeclared`` (its stray free symbols) is not empty."""
+    if not undeclared:
+        return
+    extra = sorted(undeclared, key=str)
+    declared = {p.name: p for p in parameters}
+    for sym in extra:
+        if sym.name in declared:
+            raise ModelError(
+                f"{what} uses symbol {sym.name!r} with assumptions {sym.assumptions0} but the declared "
+                f"parameter {sym.name!r} has {declared[sym.name].assumptions0}; use the same Symbol")
+    raise ModelError(
+        f"{what} uses symbols not declared as parameters: {', '.join(map(str, extra))} "
+        f"(declared: {', '.join(map(str, parameters)) or 'none'})")
 
 
 def _as_load(load: Any) -> Load:

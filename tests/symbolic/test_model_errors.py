@@ -68,6 +68,16 @@ def test_undeclared_symbol_in_generalized_force():
         Model("bad", [x], [m], kinetic_energy=T_x, generalized_forces={x: -c * x.diff(t)})
 
 
+def test_undeclared_symbol_in_a_body_position_names_the_body():
+    # Body positions are only read when deriving; the message names the body and the symbol.
+    N, O = me.ReferenceFrame("N"), me.Point("O")
+    ball = me.Particle("ball", O.locatenew("P", (x + l) * N.x), m)
+    model = Model("bad", [x], [m], bodies=[ball], frame=N, origin=O)
+    with raises_naming("ball", "l") as info:
+        derive_equations(model)
+    assert "not declared" in str(info.value)
+
+
 def test_symbol_declared_as_parameter_and_coordinate():
     with raises_naming("x"):
         Model("bad", [x], [m, sp.Symbol("x")], kinetic_energy=T_x)
