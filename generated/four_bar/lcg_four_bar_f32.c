@@ -9,6 +9,134 @@
 
 #include "lcg_four_bar_f32.h"
 
+/* ------------------------------------------------------------------------------------------
+ * Inline sine and cosine (printed as lcg_sinf and lcg_cosf): faster than the libm calls
+ * because sin and cos of one angle share one argument reduction once inlined, and the
+ * lcg_sinf_fast / lcg_cosf_fast forms are branch-free (no calls, no data-dependent branches),
+ * so gcc can vectorize them in loops over independent lanes.
+ *
+ *   x = n pi/2 + r, |r| <= pi/4 (+ a little): n = x 2/pi rounded by adding and subtracting
+ *   1.5 * 2^23 (round to nearest, IEEE arithmetic), r by Cody-Waite with pi/2 split into
+ *   parts short enough that n times each part is exact, the differences summed exactly (Knuth's
+ *   two-sum) into r = hi + lo;
+ *   sin r, cos r: minimax polynomials on [-pi/4, pi/4], with the correction for lo;
+ *   n mod 4 (the low bits of the rounded 1.5 * 2^23 + n) picks sin r, cos r, -sin r, -cos r
+ *   (by bit operations in float, by multiplying with 0 or +-1 in double).
+ *
+ * Coefficients: Cephes sinf.c / cosf.c (S. L. Moshier); pi/2 in four 11-bit parts and a float tail,
+ * so n * part is exact for |n| < 2^13. Valid for |x| <= LCG_TRIGF_LIMIT; lcg_sinf and lcg_cosf call
+ * sinf and cosf beyond (and for NaN and infinities). Measured against the correctly rounded value
+ * over every float with |x| <= LCG_TRIGF_LIMIT: below 0.81 ulp (tests/trig).
+ * Needs IEEE arithmetic: under -ffast-math (__FAST_MATH__) every form calls libm instead.
+ * ------------------------------------------------------------------------------------------ */
+#ifndef LCG_TRIG_UNLIKELY
+#ifdef __GNUC__
+#define LCG_TRIG_UNLIKELY(condition) __builtin_expect(!!(condition), 0)  /* keeps libm calls off the hot path */
+#else
+#define LCG_TRIG_UNLIKELY(condition) (condition)
+#endif
+#endif
+#ifndef LCG_TRIGF_DEFINED
+#define LCG_TRIGF_DEFINED
+#define LCG_TRIGF_LIMIT 1.0e4F
+
+#ifdef __FAST_MATH__
+static inline float lcg_sinf_fast(float x) { return sinf(x); }
+static inline float lcg_cosf_fast(float x) { return cosf(x); }
+#else
+typedef union { float value; unsigned int bits; } lcg_trigf_word;
+typedef char lcg_trigf_word_is_32_bits[sizeof(unsigned int) == sizeof(float) ? 1 : -1];
+typedef struct { float hi, lo; unsigned int quadrant; } lcg_trigf_reduced;
+
+/* x = n pi/2 + (hi + lo), quadrant = n in its low bits; exact for |x| <= LCG_TRIGF_LIMIT. */
+static inline lcg_trigf_reduced lcg_trigf_reduce(float x)
+{
+    const float shift = 0x1.8p23F;  /* 1.5 * 2^23 */
+    lcg_trigf_word rounded;
+    lcg_trigf_reduced out;
+    float n, r1, w2, w3, w4, a, a_back, a_err, b, b_back, b_err, c, c_back, c_err;
+    rounded.value = x * 0x1.45f306p-1F + shift;  /* 2/pi */
+    n = rounded.value - shift;
+    r1 = x - n * 0x1.92p+0F;  /* exact (Sterbenz) */
+    w2 = n * 0x1.fb4p-12F;    /* exact, like the next two */
+    w3 = n * 0x1.444p-24F;
+    w4 = n * 0x1.68cp-39F;
+    a = r1 - w2;
+    a_back = a - r1;
+    a_err = (r1 - (a - a_back)) + (-w2 - a_back);
+    b = a - w3;
+    b_back = b - a;
+    b_err = (a - (b - b_back)) + (-w3 - b_back);
+    c = b - w4;
+    c_back = c - b;
+    c_err = (b - (c - c_back)) + (-w4 - c_back);
+    out.hi = c;
+    out.lo = ((a_err + b_err) + c_err) - n * 0x1.1a6264p-54F;
+    out.quadrant = rounded.bits;
+    return out;
+}
+
+/* sin(x + y), |x| <= pi/4, y a tail of x (the fdlibm form of the correction). */
+static inline float lcg_trigf_sin_kernel(float x, float y)
+{
+    const float z = x * x, v = z * x;
+    const float r = 8.3321608736E-3F + z * -1.9515295891E-4F;
+    return x - ((z * (0.5F * y - v * r) - y) - v * -1.6666654611E-1F);
+}
+
+/* cos(x + y), |x| <= pi/4, y a tail of x; 1 - z/2 summed with its rounding error. */
+static inline float lcg_trigf_cos_kernel(float x, float y)
+{
+    const float z = x * x;
+    const float r = z * (4.166664568298827E-2F + z * (-1.388731625493765E-3F + z * 2.443315711809948E-5F));
+    const float hz = 0.5F * z, w = 1.0F - hz;
+    return w + (((1.0F - w) - hz) + (z * r - x * y));
+}
+
+/* s for n mod 4 = 0, c for 1, -s for 2, -c for 3, by bit operations (no branches). */
+static inline float lcg_trigf_pick(float s, float c, unsigned int n)
+{
+    lcg_trigf_word ws, wc;
+    ws.value = s;
+    wc.value = c;
+    ws.bits ^= ((ws.bits ^ wc.bits) & (0U - (n & 1U))) ^ ((n & 2U) << 30);
+    return ws.value;
+}
+
+/* sin x for |x| <= LCG_TRIGF_LIMIT, branch-free. */
+static inline float lcg_sinf_fast(float x)
+{
+    const lcg_trigf_reduced t = lcg_trigf_reduce(x);
+    return lcg_trigf_pick(lcg_trigf_sin_kernel(t.hi, t.lo), lcg_trigf_cos_kernel(t.hi, t.lo), t.quadrant);
+}
+
+/* cos x = sin(x + pi/2) for |x| <= LCG_TRIGF_LIMIT, branch-free. */
+static inline float lcg_cosf_fast(float x)
+{
+    const lcg_trigf_reduced t = lcg_trigf_reduce(x);
+    return lcg_trigf_pick(lcg_trigf_sin_kernel(t.hi, t.lo), lcg_trigf_cos_kernel(t.hi, t.lo), t.quadrant + 1U);
+}
+#endif
+
+/* sin x for every float: the inline form within the limit, else sinf (NaN and inf included).
+ * The inline form is computed unconditionally, so sin and cos of one angle share it. */
+static inline float lcg_sinf(float x)
+{
+    float y = lcg_sinf_fast(x);
+    if (LCG_TRIG_UNLIKELY(!(fabsf(x) <= LCG_TRIGF_LIMIT))) y = sinf(x);
+    return y;
+}
+
+/* cos x for every float: the inline form within the limit, else cosf (NaN and inf included).
+ * The inline form is computed unconditionally, so sin and cos of one angle share it. */
+static inline float lcg_cosf(float x)
+{
+    float y = lcg_cosf_fast(x);
+    if (LCG_TRIG_UNLIKELY(!(fabsf(x) <= LCG_TRIGF_LIMIT))) y = cosf(x);
+    return y;
+}
+#endif
+
 /* A pivot of M that is not positive means a singular mass matrix only at a finite state;
  * at an infinite or NaN state (a diverged step) it reports the non-finite state instead. */
 static int lcg_four_bar_f32_pivot_failure(const float *x)

@@ -9,6 +9,130 @@
 
 #include "lcg_pendulum_chain_5.h"
 
+/* ------------------------------------------------------------------------------------------
+ * Inline sine and cosine (printed as lcg_sin and lcg_cos): faster than the libm calls
+ * because sin and cos of one angle share one argument reduction once inlined, and the
+ * lcg_sin_fast / lcg_cos_fast forms are branch-free (no calls, no data-dependent branches),
+ * so gcc can vectorize them in loops over independent lanes.
+ *
+ *   x = n pi/2 + r, |r| <= pi/4 (+ a little): n = x 2/pi rounded by adding and subtracting
+ *   1.5 * 2^52 (round to nearest, IEEE arithmetic), r by Cody-Waite with pi/2 split into
+ *   parts short enough that n times each part is exact, the differences summed exactly (Knuth's
+ *   two-sum) into r = hi + lo;
+ *   sin r, cos r: minimax polynomials on [-pi/4, pi/4], with the correction for lo;
+ *   n mod 4 (the low bits of the rounded 1.5 * 2^52 + n) picks sin r, cos r, -sin r, -cos r
+ *   (by bit operations in float, by multiplying with 0 or +-1 in double).
+ *
+ * Coefficients: fdlibm / FreeBSD msun __kernel_sin and __kernel_cos (k_sin.c, k_cos.c, Sun
+ * Microsystems 1993) and the 33-bit parts of pi/2 of __ieee754_rem_pio2 (e_rem_pio2.c: pio2_1,
+ * pio2_2, pio2_3, pio2_3t), so n * part is exact for |n| < 2^20. Valid for |x| <= LCG_TRIG_LIMIT;
+ * lcg_sin and lcg_cos call sin and cos beyond (and for NaN and infinities). Measured against
+ * mpmath: below 0.75 ulp (tests/trig).
+ * Needs IEEE arithmetic: under -ffast-math (__FAST_MATH__) every form calls libm instead.
+ * ------------------------------------------------------------------------------------------ */
+#ifndef LCG_TRIG_UNLIKELY
+#ifdef __GNUC__
+#define LCG_TRIG_UNLIKELY(condition) __builtin_expect(!!(condition), 0)  /* keeps libm calls off the hot path */
+#else
+#define LCG_TRIG_UNLIKELY(condition) (condition)
+#endif
+#endif
+#ifndef LCG_TRIG_DEFINED
+#define LCG_TRIG_DEFINED
+#define LCG_TRIG_LIMIT 1.0e6
+
+#ifdef __FAST_MATH__
+static inline double lcg_sin_fast(double x) { return sin(x); }
+static inline double lcg_cos_fast(double x) { return cos(x); }
+#else
+typedef union { double value; unsigned long long bits; } lcg_trig_word;
+typedef char lcg_trig_word_is_64_bits[sizeof(unsigned long long) == sizeof(double) ? 1 : -1];
+/* r = hi + lo; sin x = a sin r - nb cos r, cos x = a cos r + nb sin r (a, nb in {-1, 0, 1}) */
+typedef struct { double hi, lo, a, nb; } lcg_trig_reduced;
+
+/* x = n pi/2 + (hi + lo) and the quadrant signs; exact for |x| <= LCG_TRIG_LIMIT. */
+static inline lcg_trig_reduced lcg_trig_reduce(double x)
+{
+    const double shift = 0x1.8p52;  /* 1.5 * 2^52 */
+    lcg_trig_word rounded;
+    lcg_trig_reduced out;
+    double n, r1, w2, w3, w, w_err, hi, hi_back;
+    int quadrant;
+    rounded.value = x * 0x1.45f306dc9c883p-1 + shift;  /* 2/pi */
+    n = rounded.value - shift;
+    quadrant = (int)(rounded.bits & 3ULL);  /* n mod 4 */
+    r1 = x - n * 0x1.921fb544p+0;  /* pio2_1: exact (Sterbenz) */
+    w2 = n * 0x1.0b4611a6p-34;     /* pio2_2: exact, like pio2_3 */
+    w3 = n * 0x1.3198a2ep-69;
+    w = w2 + w3;                   /* fast two-sum: w + w_err = w2 + w3 */
+    w_err = w3 - (w - w2);
+    hi = r1 - w;                   /* two-sum: the rounding error of hi goes to lo */
+    hi_back = hi - r1;
+    out.hi = hi;
+    out.lo = (((r1 - (hi - hi_back)) + (-w - hi_back)) - w_err) - n * 0x1.b839a252049c1p-104;  /* pio2_3t */
+    /* +0.0, never -0.0, where a sign is zero: sin(-0) = -0 - 1 * (+0) stays -0 */
+    out.a = (double)((quadrant == 0) - (quadrant == 2));
+    out.nb = (double)((quadrant == 3) - (quadrant == 1));
+    return out;
+}
+
+/* sin(x + y), |x| <= pi/4, y a tail of x: fdlibm __kernel_sin, the polynomial by Estrin's scheme
+ * (shorter dependency chain than Horner). */
+static inline double lcg_trig_sin_kernel(double x, double y)
+{
+    const double z = x * x, z2 = z * z, v = z * x;
+    const double r = (8.33333333332248946124e-03 + z * -1.98412698298579493134e-04)
+                     + z2 * ((2.75573137070700676789e-06 + z * -2.50507602534068634195e-08)
+                             + z2 * 1.58969099521155010221e-10);
+    return x - ((0.5 * z * y - y) - v * (-1.66666666666666324348e-01 + z * r));  /* x - (+0): sin(-0) = -0 */
+}
+
+/* cos(x + y), |x| <= pi/4, y a tail of x: FreeBSD __kernel_cos (1 - z/2 summed with its
+ * rounding error), the polynomial by Estrin's scheme. */
+static inline double lcg_trig_cos_kernel(double x, double y)
+{
+    const double z = x * x, z2 = z * z;
+    const double r = (4.16666666666666019037e-02 + z * -1.38888888888741095749e-03)
+                     + z2 * ((2.48015872894767294178e-05 + z * -2.75573143513906633035e-07)
+                             + z2 * (2.08757232129817482790e-09 + z * -1.13596475577881948265e-11));
+    const double hz = 0.5 * z, u = 1.0 - hz;
+    return u + (((1.0 - u) - hz) + (z2 * r - x * y));
+}
+
+/* sin x for |x| <= LCG_TRIG_LIMIT, branch-free. */
+static inline double lcg_sin_fast(double x)
+{
+    const lcg_trig_reduced t = lcg_trig_reduce(x);
+    return lcg_trig_sin_kernel(t.hi, t.lo) * t.a - lcg_trig_cos_kernel(t.hi, t.lo) * t.nb;
+}
+
+/* cos x for |x| <= LCG_TRIG_LIMIT, branch-free. */
+static inline double lcg_cos_fast(double x)
+{
+    const lcg_trig_reduced t = lcg_trig_reduce(x);
+    return lcg_trig_cos_kernel(t.hi, t.lo) * t.a + lcg_trig_sin_kernel(t.hi, t.lo) * t.nb;
+}
+#endif
+
+/* sin x for every double: the inline form within the limit, else sin (NaN and inf included).
+ * The inline form is computed unconditionally, so sin and cos of one angle share it. */
+static inline double lcg_sin(double x)
+{
+    double y = lcg_sin_fast(x);
+    if (LCG_TRIG_UNLIKELY(!(fabs(x) <= LCG_TRIG_LIMIT))) y = sin(x);
+    return y;
+}
+
+/* cos x for every double: the inline form within the limit, else cos (NaN and inf included).
+ * The inline form is computed unconditionally, so sin and cos of one angle share it. */
+static inline double lcg_cos(double x)
+{
+    double y = lcg_cos_fast(x);
+    if (LCG_TRIG_UNLIKELY(!(fabs(x) <= LCG_TRIG_LIMIT))) y = cos(x);
+    return y;
+}
+#endif
+
 /* A pivot of M that is not positive means a singular mass matrix only at a finite state;
  * at an infinite or NaN state (a diverged step) it reports the non-finite state instead. */
 static int lcg_pendulum_chain_5_pivot_failure(const double *x)

@@ -88,7 +88,7 @@ def cmd_emit(args) -> int:
         o for o in DEFAULT_OUTPUTS if not (o == "energy" and eom.energy is None)]
     methods = args.methods.split(",") if args.methods else ()
     system = reduce_expressions(eom, outputs, parse_assignments(args.fixed, "fixed parameter"))
-    sources = render_sources(system, args.precision, methods=methods)
+    sources = render_sources(system, args.precision, methods=methods, trig=args.trig)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     (out / sources.header_name).write_text(sources.header)
@@ -146,6 +146,8 @@ def make_parser() -> argparse.ArgumentParser:
     emit.add_argument("model", help="example name or model file")
     emit.add_argument("--out", default=".", help="output directory (default: .)")
     emit.add_argument("--precision", choices=("double", "float"), default="double")
+    emit.add_argument("--trig", choices=("libm", "inline"), default="libm",
+                      help="sin/cos as libm calls (default) or inline polynomials (below 1 ulp, templates/trig.c.j2)")
     emit.add_argument("--outputs", help="comma-separated subset of mass_matrix,forcing,accel,rhs,energy,"
                       "points,jacobian (default: all)")
     emit.add_argument("--methods", help="comma-separated integrators to include as step functions, "

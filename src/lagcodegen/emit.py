@@ -15,10 +15,11 @@ from .csyntax import EmitError, comment_text, literal, record
 from .cse import OUTPUT_KERNELS, ReducedKernel, ReducedSystem
 from .ldlt import ldlt_factor_lines, ldlt_solve_lines, ldlt_substitution_lines
 from .model import TIME
-from .printer import CPrinter, mangle
+from .printer import DEFAULT_TRIG, TRIG_MODES, CPrinter, mangle
 from .stepper_context import stepper_context
 
-__all__ = ["CSources", "EmitError", "KernelLayout", "render_sources", "template_dir", "comment_text"]
+__all__ = ["CSources", "EmitError", "KernelLayout", "render_sources", "template_dir", "comment_text",
+           "trig_source"]
 
 
 @dataclass(frozen=True)
@@ -147,7 +148,7 @@ def _names(system: ReducedSystem, model_name: str) -> _Names:
 
 
 def render_sources(system: ReducedSystem, precision: str = "double", model_name: str | None = None,
-                   methods=()) -> CSources:
+                   methods=(), trig: str = DEFAULT_TRIG) -> CSources:
     """Render the C header, source and cffi cdef of ``system``.
 
     Parameters
@@ -160,12 +161,18 @@ def render_sources(system: ReducedSystem, precision: str = "double", model_name:
     methods : sequence of str
         Integration schemes (`schemes.SCHEMES`) to compile as ``step_<name>`` functions and into
         the ``simulate`` driver; needs the ``rhs`` output, implicit ones also ``jacobian``.
+    trig : {"libm", "inline"}
+        ``"libm"`` (default): plain ``sin``/``cos`` calls; ``"inline"``: the inline functions of
+        ``templates/trig.c.j2`` (below 1 ulp, sin and cos of one angle share the reduction).
+        The template is included whenever a kernel has a sine or cosine, in both modes.
     """
     if precision not in PRECISIONS:
         raise EmitError(f"precision must be one of {PRECISIONS}, got {precision!r}")
+    if trig not in TRIG_MODES:
+        raise EmitError(f"trig must be one of {TRIG_MODES}, got {trig!r}")
     model_name = model_name or system.name
     names = _names(system, model_name)
-    printer = CPrinter(precision=precision, names=names.symbols)
+    printer = CPrinter(precision=precision, names=names.symbols, trig=trig)
     real = precision
     functions = []
     if any(out in system.outputs for out in ("accel", "rhs", "multipliers")):
@@ -194,6 +201,7 @@ def render_sources(system: ReducedSystem, precision: str = "double", model_name:
                      tuple(m["name"] for m in steppers["methods"]))
     context = _context(system, names, layout, functions, real) | steppers
     context["prototypes"] = context["prototypes"] + stepper_prototypes
+    context |= _trig_context(printer)
     context["needs_spd"] = bool((context["has_constraints"] and (context["has_dynamics"]
                                                                  or context["has_constraint_terms"]))
                                 or context["has_symplectic_euler"])
@@ -206,6 +214,25 @@ def render_sources(system: ReducedSystem, precision: str = "double", model_name:
     cdef = env.get_template("model.cdef.j2").render(context)
     return CSources(layout=layout, header_name=header_name, header=header, source_name=source_name,
                     source=source, cdef=cdef)
+
+
+def _trig_context(printer: CPrinter) -> dict:
+    """templates/trig.c.j2 is included whenever a kernel has a sine or cosine, also with
+    trig="libm": the integrators may call its branch-free forms."""
+    return {"has_trig": printer.printed_trig} | _trig_template_context(printer.precision)
+
+
+def _trig_template_context(precision: str) -> dict:
+    suffix = "f" if precision == "float" else ""
+    return {"is_float": precision == "float", "trig_sin": f"lcg_sin{suffix}", "trig_cos": f"lcg_cos{suffix}",
+            "mantissa_bits": 23 if precision == "float" else 52}
+
+
+def trig_source(precision: str = "double") -> str:
+    """The C text of ``templates/trig.c.j2`` alone (needs ``<math.h>``), e.g. to test it."""
+    if precision not in PRECISIONS:
+        raise EmitError(f"precision must be one of {PRECISIONS}, got {precision!r}")
+    return _environment().get_template("trig.c.j2").render(_trig_template_context(precision))
 
 
 def _kernel_of(output: str) -> str:

@@ -9,7 +9,9 @@ Used by ``emit.py``; imports no pipeline stage.
 - :class:`CPrinter` subclasses sympy's ``C99CodePrinter`` (``sympy/printing/c.py``). Symbols
   print as their mapped local name; ``precision="float"`` maps sympy's ``real`` type to
   ``float32`` through ``type_aliases``, so literals print as ``1.0F`` and functions as
-  ``sinf``. Nothing is ever promoted to ``double`` implicitly in float mode.
+  ``sqrtf``. Nothing is ever promoted to ``double`` implicitly in float mode. With
+  ``trig="inline"`` sine and cosine print as the inline functions of ``templates/trig.c.j2``
+  (``lcg_sin``, ``lcg_cosf``, ...), with ``trig="libm"`` (the default) as ``sin``, ``cosf``, ...
 """
 from __future__ import annotations
 
@@ -22,7 +24,7 @@ from sympy.printing.c import C99CodePrinter
 from sympy.printing.codeprinter import PrintMethodNotImplementedError
 from sympy.printing.precedence import PRECEDENCE, precedence
 
-__all__ = ["mangle", "CPrinter", "RESERVED_NAMES", "MUL_POW_MAX"]
+__all__ = ["mangle", "CPrinter", "RESERVED_NAMES", "MUL_POW_MAX", "TRIG_MODES", "DEFAULT_TRIG"]
 
 # --- reserved names -----------------------------------------------------------------------
 
@@ -141,6 +143,12 @@ MUL_POW_MAX = 4
 """Integer powers up to this exponent print as products (``x*x*x``) when the base is atomic."""
 _MUL_POW_MAX_COMPOSITE = 3  # composite bases are repeated in the text; keep them short
 
+TRIG_MODES = ("inline", "libm")
+"""How sin and cos print: the inline functions of ``templates/trig.c.j2``, or ``<math.h>`` calls."""
+DEFAULT_TRIG = "libm"
+"""Measured (benchmarks/README.md): in the latency-bound RK4 step of the double pendulum glibc's
+sincos is as fast as the inline forms, and the libm fallback beyond the limit costs registers."""
+
 _LOCAL_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*(\[[0-9]+\])?")
 _NUMBER = re.compile(r"[0-9]+(\.[0-9]*)?([eE][+-]?[0-9]+)?F?")
 _CALL = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\(.*\)", re.S)
@@ -176,6 +184,10 @@ class CPrinter(C99CodePrinter):
         Local C name of every symbol (or applied function such as ``q1(t)``) that may occur,
         e.g. ``{theta1: "theta1", l1: "p[2]"}``. Each name is an identifier, optionally
         followed by a constant index.
+    trig : {"inline", "libm"}
+        ``"inline"`` prints ``sin``/``cos`` as ``lcg_sin``/``lcg_cos`` (float: ``lcg_sinf``,
+        ``lcg_cosf``), defined by ``templates/trig.c.j2``; ``"libm"`` as the ``<math.h>`` calls.
+        ``printed_trig`` tells afterwards whether any sine or cosine was printed (in either mode).
 
     Rules
     -----
@@ -190,9 +202,11 @@ class CPrinter(C99CodePrinter):
 
     _default_settings = dict(C99CodePrinter._default_settings, strict=True)
 
-    def __init__(self, precision: str = "double", names: dict | None = None):
+    def __init__(self, precision: str = "double", names: dict | None = None, trig: str = DEFAULT_TRIG):
         if precision not in ("double", "float"):
             raise ValueError(f"precision must be 'double' or 'float', got {precision!r}")
+        if trig not in TRIG_MODES:
+            raise ValueError(f"trig must be one of {TRIG_MODES}, got {trig!r}")
         names = dict(names or {})
         for key, value in names.items():
             if not isinstance(value, str) or not _LOCAL_NAME.fullmatch(value):
@@ -200,6 +214,8 @@ class CPrinter(C99CodePrinter):
         scalar = float32 if precision == "float" else float64
         super().__init__({"type_aliases": {real: scalar}, "math_macros": {}})
         self.precision = precision
+        self.trig = trig
+        self.printed_trig = False
         self._names = names
 
     # --- names ---------------------------------------------------------------------------
@@ -267,6 +283,19 @@ class CPrinter(C99CodePrinter):
 
     def _print_BooleanFalse(self, expr):
         return "0"
+
+    # --- sine and cosine ------------------------------------------------------------------
+    def _print_trig(self, expr, name: str) -> str:
+        self.printed_trig = True
+        if self.trig == "libm":
+            return self._print_math_func(expr)
+        return f"lcg_{name}{self._get_func_suffix(real)}({self._print(expr.args[0])})"
+
+    def _print_sin(self, expr):
+        return self._print_trig(expr, "sin")
+
+    def _print_cos(self, expr):
+        return self._print_trig(expr, "cos")
 
     # --- powers --------------------------------------------------------------------------
     def _base(self, base) -> str:

@@ -383,6 +383,7 @@ def test_generated_c_is_self_contained(source):
     includes = re.findall(r"^\s*#\s*include\s*(\S+)", code, re.M)
     assert includes == ["<math.h>", f'"{header.name}"'], includes
     assert re.findall(r"^\s*#\s*include", header_code, re.M) == []
+    code = re.sub(r"\btypedef\b[^;{]*(\{[^}]*\})?[^;]*;", "", code)  # types (trig.c.j2) hold no state
     for head in file_scope_statements(re.sub(r"^\s*#.*$", "", code, flags=re.M)):
         is_function = "(" in head.split("=")[0]
         if not is_function:
