@@ -20,6 +20,7 @@ from .build import CompiledSystem, build_module
 from .cse import momentum_obstacle, reduce_expressions
 from .derive import EquationsOfMotion, derive_equations
 from .emit import CSources, render_sources, template_dir
+from .lanes import DEFAULT_LANES
 from .model import Model
 from .schemes import DEFAULT_METHODS, needs_jacobian
 
@@ -28,7 +29,7 @@ SIMULATION_OUTPUTS = ("rhs", "energy", "points", "jacobian")
 
 def compile_model(model: Model | EquationsOfMotion, *, outputs=None, fixed: Mapping | None = None,
                   methods=DEFAULT_METHODS, precision: str = "double", cache_dir=None,
-                  extra_compile_args=()) -> CompiledSystem:
+                  extra_compile_args=(), lanes: int = DEFAULT_LANES, lane_trig: str = "fast") -> CompiledSystem:
     """Derive (if given a Model), CSE, emit and compile the kernels of one model.
 
     Parameters
@@ -44,6 +45,12 @@ def compile_model(model: Model | EquationsOfMotion, *, outputs=None, fixed: Mapp
     methods : sequence of str
         Integration schemes to compile in (`schemes.SCHEMES`).
     precision : {"double", "float"}
+    lanes : int
+        Members per vector group of the lane sweep kernel (``sweep`` uses it for explicit methods
+        of unconstrained models); 0 builds none.
+    lane_trig : {"fast", "libm"}
+        sin/cos in the lane kernel: vectorizable polynomials, or libm (bitwise equal to the
+        scalar sweep, slower); see `render_sources`.
     """
     eom = model if isinstance(model, EquationsOfMotion) else derive_equations(model)
     methods = tuple(methods)
@@ -63,17 +70,17 @@ def compile_model(model: Model | EquationsOfMotion, *, outputs=None, fixed: Mapp
     needed += ["jacobian"] if needs_jacobian(methods) else []
     needed += ["momentum"] if "symplectic_euler" in methods else []
     outputs += [o for o in needed if o not in outputs]
-    key = _sources_key(eom, outputs, fixed, methods, precision)
+    key = _sources_key(eom, outputs, fixed, methods, precision, (lanes, lane_trig))
     entry = cache.cache_dir(cache_dir) / "sources" / f"{key[:32]}.pickle"
     sources = _load_sources(entry)
     if sources is None:
         system = reduce_expressions(eom, outputs, fixed)
-        sources = render_sources(system, precision, methods=methods)
+        sources = render_sources(system, precision, methods=methods, lanes=lanes, lane_trig=lane_trig)
         _store_sources(entry, sources)
     return build_module(sources, cache_dir=cache_dir, extra_compile_args=extra_compile_args)
 
 
-def _sources_key(eom: EquationsOfMotion, outputs, fixed, methods, precision) -> str:
+def _sources_key(eom: EquationsOfMotion, outputs, fixed, methods, precision, lanes=(0, "fast")) -> str:
     """sha256 of everything render_sources' output depends on (equations, options, templates)."""
     templates = sorted(template_dir().glob("*.j2"))
     expressions = (eom.mass_matrix, eom.forcing, eom.kinematics, eom.energy, eom.points, eom.constraints,
@@ -83,7 +90,7 @@ def _sources_key(eom: EquationsOfMotion, outputs, fixed, methods, precision) -> 
         "expressions": sp.srepr(expressions),
         "parameters": sp.srepr(tuple(eom.parameters)) + repr(sorted((str(k), v) for k, v in eom.parameter_values.items())),
         "options": repr((list(outputs), sorted((str(k), float(v)) for k, v in (fixed or {}).items()),
-                         list(methods), precision)),
+                         list(methods), precision, lanes)),
         "templates": "".join(path.name + path.read_text() for path in templates),
     })
 
