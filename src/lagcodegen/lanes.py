@@ -25,8 +25,9 @@ from .csyntax import EmitError, literal as _literal, record as _record
 from .ldlt import ldlt_factor_lines, ldlt_substitution_lines
 from .printer import CPrinter
 
-#: members per lane group: 4 doubles = one AVX2 vector, two SSE2 vectors (see benchmarks/bench_sweep.py)
-DEFAULT_LANES = 4
+#: members per lane group: 8 doubles = two AVX2 (four SSE2) vectors; 8 measured a little faster than 4
+#: with SSE2 and AVX2 (benchmarks/bench_sweep.py)
+DEFAULT_LANES = 8
 TRIG_MODES = ("fast", "libm")
 # per-lane flags, 0 or 1 in the scalar type (int flags would stop gcc vectorizing the loop):
 _WIDE = "lcg_wide"          # a trig argument outside the fast range, or not finite

@@ -176,7 +176,8 @@ def sweep(system: CompiledSystem, grid: Mapping | None = None, *, members: Mappi
     threads : int, optional
         Local worker threads (default: all cores). Results do not depend on it.
     chunk_size : int, optional
-        Members per C call / Dask task (default: about 4 chunks per thread, at most 4096).
+        Members per C call / Dask task (default: about 4 chunks per thread, at most 4096, rounded
+        up to whole lane groups).
     progress : bool, optional
         tqdm bar; default: shown when the sweep runs longer than about a second.
     client : dask.distributed.Client, optional
@@ -210,9 +211,9 @@ def sweep(system: CompiledSystem, grid: Mapping | None = None, *, members: Mappi
                lanes)
     out = _allocate(job, len(values))
     threads = threads or os.cpu_count() or 1
-    chunk_size = chunk_size or max(1, min(4096, math.ceil(len(values) / (4 * threads))))
-    if lanes:  # whole lane groups per chunk: only the last group of the sweep is partly empty
-        chunk_size = -(-chunk_size // lanes) * lanes
+    if chunk_size is None:  # whole lane groups per chunk: only the sweep's last group has empty lanes
+        chunk_size = max(1, min(4096, math.ceil(len(values) / (4 * threads))))
+        chunk_size = -(-chunk_size // lanes) * lanes if lanes else chunk_size
     chunks = [(start, min(start + chunk_size, len(values))) for start in range(0, len(values), chunk_size)]
     run = _run_dask if client is not None else _run_threads
     completed = run(job, xs, ps, out, chunks, threads if client is None else client, progress)
