@@ -37,7 +37,7 @@ angles by cumulative sums), against the hand C's final state and against the RK4
 Vectorization: the double pendulum's generated C (``CompiledSystem.sources``, the output of
 ``render_sources`` that the build compiles) is compiled with lagcodegen's flags plus
 ``-fopt-info-vec-optimized``; every report is mapped from its line to the C function containing
-it. The lane kernel's loops over lanes (``for (l = 0; ...`` in ``_lanes_dynamics`` and
+it. The lane kernel's loops over lanes (``for (lcg_lane = 0; ...`` in ``_lanes_dynamics`` and
 ``_lanes_energy``, the stage sums of ``_lanes_rk4_step``) must be reported as vectorized loops;
 those that are not are looked up in ``-fopt-info-vec-missed``. A probe (``y[i] = sin(x[i])``)
 shows what a libm call does to loop vectorization (why the lane loops use their own sin/cos).
@@ -415,8 +415,8 @@ def worker_vector() -> None:
 
 def _lane_loops(lines, spans, prefix: str) -> list:
     """The loops that must vectorize across members: [{function, line, code}] of every
-    ``for (l = 0; ...`` in the lane dynamics and energy and every stage loop of the RK4 lane step."""
-    wanted = {f"{prefix}_lanes_dynamics": "for (l = 0;", f"{prefix}_lanes_energy": "for (l = 0;",
+    ``for (lcg_lane = 0; ...`` in the lane dynamics and energy and every stage loop of the RK4 lane step."""
+    wanted = {f"{prefix}_lanes_dynamics": "for (lcg_lane = 0;", f"{prefix}_lanes_energy": "for (lcg_lane = 0;",
               f"{prefix}_lanes_rk4_step": "for (m = 0;"}
     loops = []
     for first, last, name in spans:
@@ -425,7 +425,7 @@ def _lane_loops(lines, spans, prefix: str) -> list:
         for number in range(first, last + 1):
             code = lines[number - 1].strip()
             after = lines[number] if number < len(lines) else ""
-            if code.startswith(wanted[name]) and "redo[l] !=" not in after:  # not the scalar fallback loop
+            if code.startswith(wanted[name]) and "lcg_redo[lcg_lane] !=" not in after:  # not the scalar fallback loop
                 loops.append({"function": name, "line": number, "code": code})
     return loops
 

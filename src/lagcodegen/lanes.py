@@ -32,6 +32,8 @@ TRIG_MODES = ("fast", "libm")
 # per-lane flags, 0 or 1 in the scalar type (int flags would stop gcc vectorizing the loop):
 _WIDE = "lcg_wide"          # a trig argument outside the fast range, or not finite
 _SINGULAR = "lcg_singular"  # a pivot of M that is not positive
+# Locals beside user code start with lcg_ (mangle never gives a user name that prefix); x, p, t
+# and xdot are reserved names already.
 
 
 class LanePrinter(CPrinter):
@@ -97,7 +99,7 @@ def lane_context(system, names, real: str, methods: list, lanes: int, trig: str 
         kernel = system.kernel("energy")
         energy = {(i, j): e for (b, i, j), e in kernel.results if b == "E"}[(0, 0)]
         context["lane_energy"] = _head(kernel, names, printer, real, lanes) + [
-            f"E[l] = {_print(printer, energy, 'energy')};", f"redo[l] = {_WIDE};"]
+            f"lcg_energy[lcg_lane] = {_print(printer, energy, 'energy')};", f"lcg_redo[lcg_lane] = {_WIDE};"]
     return context
 
 
@@ -114,10 +116,10 @@ def _head(kernel, names, printer, real: str, lanes: int) -> list:
     lines = [f"{real} {_WIDE} = {_literal(0, real)};"]
     for s, i in names.state_index.items():
         if s in used:
-            lines.append(f"const {real} {names.symbols[s]} = x[{i * lanes} + l];")
+            lines.append(f"const {real} {names.symbols[s]} = x[{i * lanes} + lcg_lane];")
     for s, i in names.param_index.items():
         if s in used:
-            lines.append(f"const {real} {names.symbols[s]} = p[{i * lanes} + l];")
+            lines.append(f"const {real} {names.symbols[s]} = p[{i * lanes} + lcg_lane];")
     lines.append(f"/* Intermediate terms ({len(kernel.temporaries)}) */")
     for s, expr in kernel.temporaries:
         lines.append(f"const {real} {names.symbols[s]} = {_print(printer, expr, names.symbols[s])};")
@@ -139,14 +141,14 @@ def _dynamics_lines(system, names, printer, real: str, lanes: int) -> list:
     for (j, _), expr in blocks.get("F", {}).items():
         lines.append(f"const {real} F_{j} = {_print(printer, expr, f'F[{j}]')};")
     if system.kinematics_identity:
-        lines += [f"xdot[{j * lanes} + l] = x[{(n + j) * lanes} + l];" for j in range(n)]
+        lines += [f"xdot[{j * lanes} + lcg_lane] = x[{(n + j) * lanes} + lcg_lane];" for j in range(n)]
     else:
-        lines += [f"xdot[{j * lanes} + l] = {_print(printer, expr, f'qd[{j}]')};"
+        lines += [f"xdot[{j * lanes} + lcg_lane] = {_print(printer, expr, f'qd[{j}]')};"
                   for (j, _), expr in blocks["K"].items()]
     factor, LD = ldlt_factor_lines(n, {jk for jk, e in M.items() if e != 0}, real, flag=_SINGULAR)
     lines += factor + ldlt_substitution_lines(n, LD, real, lambda i: f"F_{i}",
-                                              lambda i: f"xdot[{(n + i) * lanes} + l]")
-    lines.append(f"redo[l] = {_SINGULAR} + {_WIDE};")
+                                              lambda i: f"xdot[{(n + i) * lanes} + lcg_lane]")
+    lines.append(f"lcg_redo[lcg_lane] = {_SINGULAR} + {_WIDE};")
     return lines
 
 

@@ -134,3 +134,35 @@ def test_c_refuses_methods_without_a_lane_stepper(pendulum):
         layout.methods.index("backward_euler"), 1, ptr(x0), ptr(p), 0.0, 0.01, 10, 1, 0, *map(ptr, out),
         ffi.from_buffer("int[]", status), ffi.from_buffer("long[]", steps), ffi.NULL)
     assert code == Status.UNKNOWN_METHOD and status[0] == -1
+
+
+def _unconstrained_examples():
+    from lagcodegen import catalog
+    from lagcodegen.model import Model
+
+    names = []
+    for name in catalog.EXAMPLES:
+        model = catalog.example(name)
+        if not (isinstance(model, Model) and model.constraints):
+            names.append(name)
+    return names
+
+
+@pytest.mark.parametrize("name", _unconstrained_examples())
+def test_every_catalog_model_lanes_equal_scalar_with_libm_trig(compiled_example, example_eom, name):
+    """Every unconstrained catalog model (its own symbol names beside the lane code's locals, its
+    own mass-matrix sparsity): the lane kernel built with libm trig equals the scalar kernel
+    bitwise over 11 members (a partial group) and 200 RK4 steps."""
+    if example_eom(name).m:
+        pytest.skip("constrained: the scalar kernel only")
+    system = compiled_example(name, outputs=("rhs", "energy"), methods=("rk4",), lane_trig="libm")
+    layout = system.layout
+    column = layout.parameters[0] if layout.parameters else layout.coordinates[0]
+    base = dict(layout.defaults).get(column, 1.0) or 1.0
+    options = dict(x0=[0.3 + 0.1 * i for i in range(2 * layout.n)], t_end=0.2, h=1e-3, method="rk4",
+                   progress=False, trajectories=True, stride=50)
+    grid = {column: base * np.linspace(0.8, 1.2, 11)}
+    lanes = sweep(system, grid, kernel="lanes", **options)
+    scalar = sweep(system, grid, kernel="scalar", **options)
+    for field in FIELDS + ("status", "steps_done"):
+        assert_array_equal(getattr(lanes, field), getattr(scalar, field), err_msg=field)
