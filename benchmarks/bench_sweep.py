@@ -7,7 +7,9 @@ Contenders, each measured in its own fresh process (imports, derivation and comp
 never timed; the first, calibrating runs are the warm-up)::
 
     lagcodegen sweep   ``sweep(system, {"m1": 16 values, "m<n>": 16 values}, method="rk4")``:
-                       256 members, threads = 1 and 2, track_energy False and True
+                       256 members, threads = 1 and 2, track_energy False and True; the lane-group
+                       kernel (``kernel="lanes"``, what ``sweep`` picks for RK4) and, energy off,
+                       the scalar kernel (``kernel="scalar"``, members one after another)
     hand C loop        double pendulum only: a C loop over the same 256 members calling
                        ``hand_dp_rk4_run`` of ``peers/hand_double_pendulum.c`` (closed-form
                        accelerations, RK4 stages in registers), compiled with lagcodegen's flags
@@ -35,8 +37,10 @@ angles by cumulative sums), against the hand C's final state and against the RK4
 Vectorization: the double pendulum's generated C (``CompiledSystem.sources``, the output of
 ``render_sources`` that the build compiles) is compiled with lagcodegen's flags plus
 ``-fopt-info-vec-optimized``; every report is mapped from its line to the C function containing
-it, and the member loop of ``_sweep`` is looked up in ``-fopt-info-vec-missed`` to say why it is
-not vectorized. A probe (``y[i] = sin(x[i])``) shows what a libm call does to loop vectorization.
+it. The lane kernel's loops over lanes (``for (lcg_lane = 0; ...`` in ``_lanes_dynamics`` and
+``_lanes_energy``, the stage sums of ``_lanes_rk4_step``) must be reported as vectorized loops;
+those that are not are looked up in ``-fopt-info-vec-missed``. A probe (``y[i] = sin(x[i])``)
+shows what a libm call does to loop vectorization (why the lane loops use their own sin/cos).
 
 Goals (from the issue): >= 10 million member-steps/s per core on the double pendulum; >= 1.9x
 on 2 cores vs 1; >= 20x MuJoCo on the double pendulum and >= 5x on the 10-link chain.
@@ -76,8 +80,8 @@ IMPORT_TIMEOUT = 240.0                  # imports + derive + compile (10-link ch
 PER_CORE_GOAL = 10e6
 SPEEDUP_GOAL = 1.9
 MUJOCO_GOALS = {DP: 20.0, 10: 5.0}
-TOOLS = {"lcg": "lagcodegen sweep", "hand": "hand C loop", "mujoco": "MuJoCo rollout",
-         "scipy": "scipy RK45 loop"}
+TOOLS = {"lcg": "lagcodegen sweep, lanes", "lcg_scalar": "lagcodegen sweep, scalar", "hand": "hand C loop",
+         "mujoco": "MuJoCo rollout", "scipy": "scipy RK45 loop"}
 
 
 # -- models shared by workers --------------------------------------------------------------------
@@ -170,7 +174,7 @@ def sized_best(run, target: float, repeat: int) -> dict:
 
 
 # -- workers (fresh process each) ----------------------------------------------------------------
-def worker_lcg(tag, threads: int, energy: bool, target: float, quick: bool) -> None:
+def worker_lcg(tag, threads: int, energy: bool, target: float, quick: bool, kernel: str = "lanes") -> None:
     import numpy as np
 
     from lagcodegen.sweep import sweep
@@ -183,7 +187,7 @@ def worker_lcg(tag, threads: int, energy: bool, target: float, quick: bool) -> N
 
     def run(n_steps):
         result = sweep(system, grid, x0=x0, t_end=n_steps * H, h=H, method="rk4", threads=threads,
-                       track_energy=energy, progress=False)
+                       track_energy=energy, progress=False, kernel=kernel)
         bad.append(int(np.count_nonzero((result.status != 0) | (result.steps_done != n_steps))))
     timing = sized_best(run, target, REPEAT)
     emit(phase="done", members=members, failed=max(bad), **timing)
@@ -393,9 +397,11 @@ def worker_vector() -> None:
         for report in optimized:
             report["function"] = _function_at(spans, report["line"])
             report["code"] = lines[report["line"] - 1].strip()
-        member_line = next((i for i, text in enumerate(lines, 1) if "for (member = 0" in text), None)
-        missed = [r["text"] for r in _gcc(command, flags + ["-fopt-info-vec-missed"], c_file)
-                  if r["line"] == member_line]
+        lane_loops = _lane_loops(lines, spans, sources.layout.prefix)
+        missed_reports = _gcc(command, flags + ["-fopt-info-vec-missed"], c_file)
+        for loop in lane_loops:
+            loop["vectorized"] = any(r["line"] == loop["line"] and "loop vectorized" in r["text"] for r in optimized)
+            loop["missed"] = list(dict.fromkeys(r["text"] for r in missed_reports if r["line"] == loop["line"]))
         probe = tmp / "probe.c"
         probe.write_text(_PROBE)
         probe_plain = any("loop vectorized" in r["text"] for r in _gcc(command, flags + ["-fopt-info-vec-optimized"], probe))
@@ -404,9 +410,24 @@ def worker_vector() -> None:
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
     emit(phase="done", compiler=" ".join(command), flags=flags, file=sources.source_name, reports=optimized,
-         member_line=member_line, member_code=lines[member_line - 1].strip() if member_line else None,
-         member_function=_function_at(spans, member_line) if member_line else None, member_missed=missed,
-         probe_plain=probe_plain, probe_fast=probe_fast)
+         lane_loops=lane_loops, probe_plain=probe_plain, probe_fast=probe_fast)
+
+
+def _lane_loops(lines, spans, prefix: str) -> list:
+    """The loops that must vectorize across members: [{function, line, code}] of every
+    ``for (lcg_lane = 0; ...`` in the lane dynamics and energy and every stage loop of the RK4 lane step."""
+    wanted = {f"{prefix}_lanes_dynamics": "for (lcg_lane = 0;", f"{prefix}_lanes_energy": "for (lcg_lane = 0;",
+              f"{prefix}_lanes_rk4_step": "for (m = 0;"}
+    loops = []
+    for first, last, name in spans:
+        if name not in wanted:
+            continue
+        for number in range(first, last + 1):
+            code = lines[number - 1].strip()
+            after = lines[number] if number < len(lines) else ""
+            if code.startswith(wanted[name]) and "lcg_redo[lcg_lane] !=" not in after:  # not the scalar fallback loop
+                loops.append({"function": name, "line": number, "code": code})
+    return loops
 
 
 # -- parent side ---------------------------------------------------------------------------------
@@ -440,6 +461,9 @@ def measure(options) -> tuple:
                     result = _measure(["lcg", tag, threads, int(energy), target, mode], timeout, env)
                     rows.append(_row(result, tag, "lcg", threads, "on" if energy else "off"))
                     progress(f"sweep: {label(tag)} lagcodegen threads={threads} energy={energy}: {_progress(rows[-1])}")
+                result = _measure(["lcg", tag, threads, 0, target, mode, "scalar"], timeout, env)
+                rows.append(_row(result, tag, "lcg_scalar", threads, "off"))
+                progress(f"sweep: {label(tag)} lagcodegen scalar kernel threads={threads}: {_progress(rows[-1])}")
             if tag == DP:
                 rows.append(_row(_measure(["hand", tag, target, mode], timeout, env), tag, "hand", 1, "-"))
                 progress(f"sweep: {label(tag)} hand C loop: {_progress(rows[-1])}")
@@ -578,21 +602,21 @@ def _vector_section(v: dict) -> str:
     width = max((len(g[5][:60]) for g in groups), default=0)  # padded: format_table right-aligns
     body = [[f, line, kind, count, versioned or "", code[:60].ljust(width)] for f, line, kind, count, versioned, code in groups]
     table = format_table(["function (source)", "line", "kind", "count", "versioned", "code"], body, left=1)
-    member_vectorized = any(g[1] == v["member_line"] for g in loops)
-    why = "; ".join(dict.fromkeys(v["member_missed"])) or "no report for this line"
-    verdict = [
-        "",
-        f"    member loop: line {v['member_line']} of {v['member_function']} `{v['member_code']}`: "
-        + ("VECTORIZED" if member_vectorized else f"NOT vectorized; gcc -fopt-info-vec-missed: \"{why}\""),
-        "    verdict: " + ("gcc vectorizes across members." if member_vectorized else
-                          "the per-member kernel is NOT vectorized across members: _sweep runs members one after "
-                          "another, each a full scalar RK4 run. What gcc vectorizes lies inside one member: short "
-                          "loops over the state components (RK stage sums, copies) and straight-line pairs (SLP), "
-                          "at most 2 doubles per vector."),
+    lane_lines = [""]
+    for loop in v["lane_loops"]:
+        why = "; ".join(loop["missed"][:2]) or "no report for this line (fully unrolled and SLP-vectorized, or removed)"
+        lane_lines.append(f"    lane loop: line {loop['line']} of {loop['function']} `{loop['code'][:60]}`: "
+                          + ("VECTORIZED (loop)" if loop["vectorized"] else f"not loop-vectorized; gcc: \"{why[:160]}\""))
+    core = [loop for loop in v["lane_loops"] if "_lanes_dynamics" in loop["function"] or "_lanes_energy" in loop["function"]]
+    across = bool(core) and all(loop["vectorized"] for loop in core)
+    verdict = lane_lines + [
+        "    verdict: " + ("gcc vectorizes the lane kernel's dynamics and energy loops across members (lanes "
+                          "innermost); the scalar _sweep still runs members one after another." if across else
+                          "the lane kernel's dynamics or energy loop is NOT vectorized across members."),
         f"    probe `y[i] = sin(x[i])` with the same flags: loop "
         f"{'vectorized' if v['probe_plain'] else 'NOT vectorized'}; adding -ffast-math (glibc libmvec "
-        f"declarations): {'vectorized' if v['probe_fast'] else 'NOT vectorized'}. The rhs calls sin/cos, so a "
-        f"members-innermost layout would also need libmvec (and -ffast-math's semantics) or its own vector sin/cos.",
+        f"declarations): {'vectorized' if v['probe_fast'] else 'NOT vectorized'}. Hence the lane loops call their own "
+        f"branch-free sin/cos (templates/trig.c.j2) and hand lanes beyond its range to libm afterwards.",
     ]
     return "\n".join(head) + table + "\n" + "\n".join(verdict)
 
@@ -622,7 +646,8 @@ def format_report(rows, checks, vector, target, timeout, start_load) -> str:
         f"MACHINE LOAD CAVEAT: shared machine, 1-min load average {start_load:.2f} at the start (column load: at "
         f"each row's timed runs); CPU/wall below thr means the worker waited for a core, so wall rates understate "
         f"a core's speed. The per-core goal and the MuJoCo ratios therefore use M/CPU-s of thr 1 rows.",
-        f"lagcodegen: sweep(system, grid, method='rk4', track_energy=off|on) over a {grid} member grid of m1 x m_n "
+        f"lagcodegen: sweep(system, grid, method='rk4', track_energy=off|on, kernel='lanes'|'scalar') over a {grid} "
+        f"member grid of m1 x m_n "
         f"(0.5..2 kg each); x0 = {DP_STATE} (double pendulum), sample_state(10) (chain); per step also a "
         f"finiteness check, max |q_i| tracking and a state backup; energy on = one energy evaluation per step",
         "hand C loop: C loop over the same members calling peers' hand_dp_rk4_run (no per-step checks), "
@@ -713,7 +738,7 @@ def run(options) -> dict:
 def _worker(kind: str, args: list) -> None:
     quick = lambda text: text == "quick"  # noqa: E731
     if kind == "lcg":
-        worker_lcg(parse_tag(args[0]), int(args[1]), bool(int(args[2])), float(args[3]), quick(args[4]))
+        worker_lcg(parse_tag(args[0]), int(args[1]), bool(int(args[2])), float(args[3]), quick(args[4]), *args[5:])
     elif kind == "hand":
         worker_hand(float(args[1]), quick(args[2]))
     elif kind == "mujoco":

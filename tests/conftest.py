@@ -101,25 +101,26 @@ def example_eom():
 
 @pytest.fixture(scope="session")
 def compiled_example(kernel_cache_dir, example_eom):
-    """``compiled_example(name, precision="double", outputs=None, fixed=None, methods=())``.
+    """``compiled_example(name, precision="double", outputs=None, fixed=None, methods=(), **lane_options)``.
 
     Compiles a catalog example once per session through ``compile_model``. ``outputs=None``
     means every output the model has (``ALL_OUTPUTS`` minus energy when it has no energies);
     ``methods=()`` compiles no integrators, which keeps the build fast for kernel tests.
+    ``lane_options`` (``lanes``, ``lane_trig``) go to ``compile_model``.
     """
     from lagcodegen.pipeline import compile_model
 
     memo: dict = {}
 
-    def get(name: str, precision: str = "double", outputs=None, fixed=None, methods=()):
+    def get(name: str, precision: str = "double", outputs=None, fixed=None, methods=(), **lane_options):
         eom = example_eom(name)
         if outputs is None:
             outputs = tuple(o for o in ALL_OUTPUTS if not (o == "energy" and eom.energy is None))
         fixed_key = tuple(sorted((str(k), float(v)) for k, v in (fixed or {}).items()))
-        key = (name, precision, tuple(outputs), fixed_key, tuple(methods))
+        key = (name, precision, tuple(outputs), fixed_key, tuple(methods), tuple(sorted(lane_options.items())))
         if key not in memo:
             memo[key] = compile_model(eom, outputs=outputs, fixed=fixed, methods=tuple(methods),
-                                      precision=precision)
+                                      precision=precision, **lane_options)
         return memo[key]
 
     return get

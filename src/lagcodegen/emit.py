@@ -13,6 +13,7 @@ import sympy as sp
 
 from .csyntax import EmitError, comment_text, literal, record
 from .cse import OUTPUT_KERNELS, ReducedKernel, ReducedSystem
+from .lanes import lane_context
 from .ldlt import ldlt_factor_lines, ldlt_solve_lines, ldlt_substitution_lines
 from .model import TIME
 from .printer import DEFAULT_TRIG, TRIG_MODES, CPrinter, mangle
@@ -148,7 +149,7 @@ def _names(system: ReducedSystem, model_name: str) -> _Names:
 
 
 def render_sources(system: ReducedSystem, precision: str = "double", model_name: str | None = None,
-                   methods=(), trig: str = DEFAULT_TRIG) -> CSources:
+                   methods=(), trig: str = DEFAULT_TRIG, lanes: int = 0, lane_trig: str = "fast") -> CSources:
     """Render the C header, source and cffi cdef of ``system``.
 
     Parameters
@@ -165,6 +166,12 @@ def render_sources(system: ReducedSystem, precision: str = "double", model_name:
         ``"libm"`` (default): plain ``sin``/``cos`` calls; ``"inline"``: the inline functions of
         ``templates/trig.c.j2`` (below 1 ulp, sin and cos of one angle share the reduction).
         The template is included whenever a kernel has a sine or cosine, in both modes.
+    lanes : int
+        0: no lane kernel. Else also ``<prefix>_sweep_lanes``, which runs ``lanes`` members side by
+        side for the explicit methods (see `lanes.py`); host use, it is never in ``generated/``.
+    lane_trig : {"fast", "libm"}
+        sin/cos inside the lane loops: branch-free polynomials (vectorizable), or libm's (then the
+        lane kernel equals the scalar sweep bit for bit, for tests).
     """
     if precision not in PRECISIONS:
         raise EmitError(f"precision must be one of {PRECISIONS}, got {precision!r}")
@@ -187,7 +194,10 @@ def render_sources(system: ReducedSystem, precision: str = "double", model_name:
     functions += [_function_record(system, system.kernel(_kernel_of(out)), names, printer, real, out)
                   for out in system.outputs]
     steppers = stepper_context(system, names, real, list(methods))
+    steppers |= lane_context(system, names, real, list(methods), lanes, lane_trig)
     stepper_prototypes = steppers.pop("exported")
+    if steppers["has_lanes"]:
+        stepper_prototypes.append(steppers["lane_prototype"])
     if "constraints" in system.outputs:
         prefix = names.prefix
         stepper_prototypes = [

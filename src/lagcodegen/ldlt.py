@@ -18,12 +18,16 @@ def _minus_terms(pairs) -> str:
     return "".join(f" - {a}*{b}" for a, b in pairs)
 
 
-def ldlt_factor_lines(n: int, nonzero: set, real: str, failure: str = "LCG_SINGULAR_MASS_MATRIX") -> tuple[list, set]:
+def ldlt_factor_lines(n: int, nonzero: set, real: str, failure: str = "LCG_SINGULAR_MASS_MATRIX",
+                      flag: str | None = None) -> tuple[list, set]:
     """Unrolled LDL^T factorization of the symmetric M held in locals M_j_k (j >= k).
 
     Structural zeros of M are skipped. A pivot that is not positive (or NaN) returns
-    LCG_SINGULAR_MASS_MATRIX, so a singular M never produces NaNs silently. Returns the lines
-    and the set of (i, k) whose L_i_k is nonzero.
+    ``failure`` (default LCG_SINGULAR_MASS_MATRIX), so a singular M never produces NaNs
+    silently; with ``flag`` (the name of a local of type ``real``) it sets that flag to 1 instead
+    and goes on, branch-free, as the lane kernels need (a flag of the scalar type keeps their
+    loops vectorizable: gcc does not mix int and double lanes there). Returns the lines and the set of (i, k) whose L_i_k
+    is nonzero.
     """
     zero, one = _literal(0, real), _literal(1, real)
     lines = [f"/* Factor M = L D L^T: unrolled ({n} x {n}) */"]
@@ -31,7 +35,8 @@ def ldlt_factor_lines(n: int, nonzero: set, real: str, failure: str = "LCG_SINGU
     for j in range(n):
         pivot = _minus_terms((f"L_{j}_{k}", f"LD_{j}_{k}") for k in range(j) if (j, k) in LD)
         lines.append(f"const {real} D_{j} = M_{j}_{j}{pivot};")
-        lines.append(f"if (!(D_{j} > {zero})) return {failure};")
+        lines.append(f"if (!(D_{j} > {zero})) return {failure};" if flag is None
+                     else f"{flag} = D_{j} > {zero} ? {flag} : {one};")
         lines.append(f"const {real} Dinv_{j} = {one} / D_{j};")
         for i in range(j + 1, n):
             pairs = [(f"LD_{i}_{k}", f"L_{j}_{k}") for k in range(j) if (i, k) in LD and (j, k) in LD]

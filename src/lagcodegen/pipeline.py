@@ -20,6 +20,7 @@ from .build import CompiledSystem, build_module
 from .cse import momentum_obstacle, reduce_expressions
 from .derive import EquationsOfMotion, derive_equations
 from .emit import CSources, render_sources, template_dir
+from .lanes import DEFAULT_LANES
 from .printer import DEFAULT_TRIG
 from .model import Model
 from .schemes import DEFAULT_METHODS, needs_jacobian
@@ -29,7 +30,8 @@ SIMULATION_OUTPUTS = ("rhs", "energy", "points", "jacobian")
 
 def compile_model(model: Model | EquationsOfMotion, *, outputs=None, fixed: Mapping | None = None,
                   methods=DEFAULT_METHODS, precision: str = "double", trig: str = DEFAULT_TRIG,
-                  cache_dir=None, extra_compile_args=()) -> CompiledSystem:
+                  cache_dir=None, extra_compile_args=(), lanes: int = DEFAULT_LANES,
+                  lane_trig: str = "fast") -> CompiledSystem:
     """Derive (if given a Model), CSE, emit and compile the kernels of one model.
 
     Parameters
@@ -48,6 +50,12 @@ def compile_model(model: Model | EquationsOfMotion, *, outputs=None, fixed: Mapp
     trig : {"libm", "inline"}
         How sine and cosine are computed (`emit.render_sources`): libm calls (default) or the
         inline polynomials of ``templates/trig.c.j2``.
+    lanes : int
+        Members per vector group of the lane sweep kernel (``sweep`` uses it for explicit methods
+        of unconstrained models); 0 builds none.
+    lane_trig : {"fast", "libm"}
+        sin/cos in the lane kernel: vectorizable polynomials, or libm (bitwise equal to the
+        scalar sweep, slower); see `render_sources`.
     """
     eom = model if isinstance(model, EquationsOfMotion) else derive_equations(model)
     methods = tuple(methods)
@@ -67,17 +75,19 @@ def compile_model(model: Model | EquationsOfMotion, *, outputs=None, fixed: Mapp
     needed += ["jacobian"] if needs_jacobian(methods) else []
     needed += ["momentum"] if "symplectic_euler" in methods else []
     outputs += [o for o in needed if o not in outputs]
-    key = _sources_key(eom, outputs, fixed, methods, precision, trig)
+    key = _sources_key(eom, outputs, fixed, methods, precision, (trig, lanes, lane_trig))
     entry = cache.cache_dir(cache_dir) / "sources" / f"{key[:32]}.pickle"
     sources = _load_sources(entry)
     if sources is None:
         system = reduce_expressions(eom, outputs, fixed)
-        sources = render_sources(system, precision, methods=methods, trig=trig)
+        sources = render_sources(system, precision, methods=methods, trig=trig, lanes=lanes,
+                                 lane_trig=lane_trig)
         _store_sources(entry, sources)
     return build_module(sources, cache_dir=cache_dir, extra_compile_args=extra_compile_args)
 
 
-def _sources_key(eom: EquationsOfMotion, outputs, fixed, methods, precision, trig) -> str:
+def _sources_key(eom: EquationsOfMotion, outputs, fixed, methods, precision,
+                 code_options=(DEFAULT_TRIG, 0, "fast")) -> str:
     """sha256 of everything render_sources' output depends on (equations, options, templates)."""
     templates = sorted(template_dir().glob("*.j2"))
     expressions = (eom.mass_matrix, eom.forcing, eom.kinematics, eom.energy, eom.points, eom.constraints,
@@ -87,7 +97,7 @@ def _sources_key(eom: EquationsOfMotion, outputs, fixed, methods, precision, tri
         "expressions": sp.srepr(expressions),
         "parameters": sp.srepr(tuple(eom.parameters)) + repr(sorted((str(k), v) for k, v in eom.parameter_values.items())),
         "options": repr((list(outputs), sorted((str(k), float(v)) for k, v in (fixed or {}).items()),
-                         list(methods), precision, trig)),
+                         list(methods), precision, code_options)),
         "templates": "".join(path.name + path.read_text() for path in templates),
     })
 

@@ -6,6 +6,12 @@ on local threads (cffi releases the GIL and the C has no global state, so thread
 results do not depend on the thread count) or, given a ``dask.distributed`` Client, as tasks on
 a cluster whose workers build the kernel from its C sources or load it from their cache.
 
+Two C kernels: ``lcg_<model>_sweep_lanes`` runs members in lane groups (several members per
+vector, see `lanes.py`) and serves explicit Runge-Kutta methods of unconstrained models without
+projection; ``lcg_<model>_sweep`` runs members one after another and serves everything.
+``SweepResult.kernel`` says which ran. Both give the same per-member results, up to the last bits
+of sin/cos (the lane kernel's branch-free polynomials against libm).
+
 Memory: per member 2n (final state) + n (max |q|) + 3 numbers; trajectories, n_out * 2n per
 member, only when asked for. Members whose mass matrix loses definiteness (a negative mass,
 say) are not refused up front: they run and report SINGULAR_MASS_MATRIX in ``status``.
@@ -57,6 +63,8 @@ class SweepResult:
     state_names, coordinate_names : tuple of str
     completed : bool
         False when the sweep was interrupted (Ctrl-C); finished members are kept.
+    kernel : str
+        ``"lanes"`` (the lane-group kernel) or ``"scalar"`` (members one after another).
     """
 
     columns: tuple
@@ -73,6 +81,7 @@ class SweepResult:
     state_names: tuple
     coordinate_names: tuple
     completed: bool
+    kernel: str = "scalar"
 
     @property
     def n_members(self) -> int:
@@ -148,7 +157,7 @@ def sweep(system: CompiledSystem, grid: Mapping | None = None, *, members: Mappi
           t_end: float, h: float, method: str = "rk4", params: Mapping | None = None, t0: float = 0.0,
           trajectories: bool = False, stride: int = 1, threads: int | None = None,
           chunk_size: int | None = None, progress: bool | None = None, client=None,
-          track_energy: bool = True, project: bool = False) -> SweepResult:
+          track_energy: bool = True, project: bool = False, kernel: str = "auto") -> SweepResult:
     """Run one compiled model for every member of a grid or table.
 
     Parameters
@@ -167,7 +176,8 @@ def sweep(system: CompiledSystem, grid: Mapping | None = None, *, members: Mappi
     threads : int, optional
         Local worker threads (default: all cores). Results do not depend on it.
     chunk_size : int, optional
-        Members per C call / Dask task (default: about 4 chunks per thread, at most 4096).
+        Members per C call / Dask task (default: about 4 chunks per thread, at most 4096, rounded
+        up to whole lane groups).
     progress : bool, optional
         tqdm bar; default: shown when the sweep runs longer than about a second.
     client : dask.distributed.Client, optional
@@ -176,6 +186,9 @@ def sweep(system: CompiledSystem, grid: Mapping | None = None, *, members: Mappi
         Record max |E - E0| per member (one energy evaluation per step).
     project : bool
         Constrained models: project every member back onto the constraints after each step.
+    kernel : {"auto", "lanes", "scalar"}
+        C kernel: ``"auto"`` takes the lane-group kernel where it applies (explicit method, no
+        projection, built with lanes), else the scalar one; ``"lanes"`` insists on it.
     """
     if (grid is None) == (members is None):
         raise ValueError("give exactly one of grid= (Cartesian) or members= (explicit table)")
@@ -193,14 +206,42 @@ def sweep(system: CompiledSystem, grid: Mapping | None = None, *, members: Mappi
     xs, ps = member_arrays(system, columns, values, x0, params)
     if project and not layout.n_constraints:
         raise ValueError(f"project needs holonomic constraints; model {layout.model!r} has none")
-    job = _Job(system, layout.methods.index(method), t0, h, n_steps, stride, track_energy, trajectories, project)
+    lanes = _lanes(system, method, project, kernel)
+    job = _Job(system, layout.methods.index(method), t0, h, n_steps, stride, track_energy, trajectories, project,
+               lanes)
     out = _allocate(job, len(values))
     threads = threads or os.cpu_count() or 1
-    chunk_size = chunk_size or max(1, min(4096, math.ceil(len(values) / (4 * threads))))
+    if chunk_size is None:  # whole lane groups per chunk: only the sweep's last group has empty lanes
+        chunk_size = max(1, min(4096, math.ceil(len(values) / (4 * threads))))
+        chunk_size = -(-chunk_size // lanes) * lanes if lanes else chunk_size
     chunks = [(start, min(start + chunk_size, len(values))) for start in range(0, len(values), chunk_size)]
     run = _run_dask if client is not None else _run_threads
     completed = run(job, xs, ps, out, chunks, threads if client is None else client, progress)
     return _result(job, columns, values, axes, out, completed)
+
+
+KERNELS = ("auto", "lanes", "scalar")
+
+
+def _lanes(system: CompiledSystem, method: str, project: bool, kernel: str) -> int:
+    """Lanes per group of the lane kernel for this sweep, or 0 for the scalar kernel."""
+    from .schemes import KIND_EXPLICIT, get_scheme, scheme_kind
+
+    if kernel not in KERNELS:
+        raise ValueError(f"kernel must be one of {KERNELS}, got {kernel!r}")
+    layout = system.layout
+    reason = None
+    if f"{layout.prefix}_sweep_lanes" not in layout.functions:
+        reason = f"model {layout.model!r} was built without the lane kernel (compile_model(lanes=0), or constrained)"
+    elif scheme_kind(get_scheme(method)) != KIND_EXPLICIT:
+        reason = f"method {method!r} is not an explicit Runge-Kutta method"
+    elif project:
+        reason = "projection onto the constraints runs on the scalar kernel only"
+    if reason is None and kernel != "scalar":
+        return int(getattr(system.lib, f"{layout.prefix.upper()}_LANES"))
+    if kernel == "lanes":
+        raise ValueError(f"kernel='lanes' does not apply: {reason}")
+    return 0
 
 
 @dataclass(frozen=True)
@@ -214,6 +255,7 @@ class _Job:
     track_energy: bool
     trajectories: bool
     project: bool = False
+    lanes: int = 0  # members per group of the lane kernel; 0: the scalar kernel
 
     @property
     def n_out(self) -> int:
@@ -243,9 +285,19 @@ def run_chunk(job: _Job, xs: np.ndarray, ps: np.ndarray) -> dict:
 def _call(job: _Job, xs, ps, out) -> None:
     system = job.system
     ffi, layout = system.ffi, system.layout
+    traj = out["traj"]
+    if job.lanes:
+        lanes_c = getattr(system.lib, f"{layout.prefix}_sweep_lanes")
+        code = lanes_c(job.method_id, len(xs), _pointer(system, xs), _pointer(system, ps), job.t0, job.h,
+                       job.n_steps, job.stride, int(job.track_energy), _pointer(system, out["x_final"]),
+                       _pointer(system, out["q_max"]), _pointer(system, out["energy_error"]),
+                       ffi.from_buffer("int[]", out["status"]), ffi.from_buffer("long[]", out["steps_done"]),
+                       ffi.NULL if traj is None else _pointer(system, traj))
+        if code != Status.OK:
+            raise RuntimeError(f"{layout.prefix}_sweep_lanes refused method number {job.method_id} ({code})")
+        return
     work = np.empty(_work_size(system), dtype=_dtype(system))
     sweep_c = getattr(system.lib, f"{layout.prefix}_sweep")
-    traj = out["traj"]
     sweep_c(job.method_id, len(xs), _pointer(system, xs), _pointer(system, ps), job.t0, job.h, job.n_steps,
             job.stride, int(job.project), int(job.track_energy), _pointer(system, out["x_final"]), _pointer(system, out["q_max"]),
             _pointer(system, out["energy_error"]), ffi.from_buffer("int[]", out["status"]),
@@ -322,4 +374,4 @@ def _result(job: _Job, columns, values, axes, out, completed: bool) -> SweepResu
         energy_error=out["energy_error"] if job.track_energy else None, status=out["status"],
         steps_done=out["steps_done"], blowup_time=blowup, t=t, trajectories=out["traj"],
         state_names=layout.coordinates + layout.speeds, coordinate_names=layout.coordinates,
-        completed=completed)
+        completed=completed, kernel="lanes" if job.lanes else "scalar")

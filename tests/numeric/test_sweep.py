@@ -1,9 +1,11 @@
 """`lagcodegen.sweep`: many members through one compiled kernel, checked member by member.
 
 Independent source of every expected value: `lagcodegen.simulate.simulate` run alone with the
-member's values. Both drive the same generated C step function (``lcg_<m>_step_any``) from the
-same state at the same times ``t0 + (k - 1) h``, so states and ``max |q|`` must agree bitwise
-(assert_array_equal). The energy drift is compared to ``max |E - E0|`` over the stride-1 energy
+member's values. Every test runs against both C kernels of `sweep`: the scalar one drives the
+same generated C step function (``lcg_<m>_step_any``) as `simulate`; the lane-group kernel, built
+here with libm's sin/cos (``lane_trig="libm"``), evaluates the same printed expressions and stage
+sums per lane. Both start from the same state at the same times ``t0 + (k - 1) h``, so states
+and ``max |q|`` must agree bitwise (assert_array_equal). The energy drift is compared to ``max |E - E0|`` over the stride-1 energy
 samples of `simulate`; the C evaluates both at the same times ``t0 + k h`` (``_record`` in
 `simulate`, the tracking loop in `sweep`), so they agree to rounding; 1e-12 relative is asked.
 
@@ -43,14 +45,23 @@ FIELDS = ("values", "x_final", "q_max", "energy_error", "status", "steps_done", 
           "trajectories")
 
 
-@pytest.fixture(scope="module")
-def pendulum(compiled_example):
-    return compiled_example("double_pendulum", outputs=OUTPUTS, methods=METHODS)
+# Both C kernels behind sweep(): the lane-group kernel (lanes=8, with libm's sin/cos so that it
+# must equal simulate bitwise too) and the scalar one (a build without lanes); see lanes.py.
+KERNELS = {"lanes": dict(lane_trig="libm"), "scalar": dict(lanes=0)}
 
 
-@pytest.fixture(scope="module")
-def stiff(compiled_example):
-    return compiled_example("stiff_chain", outputs=OUTPUTS, methods=METHODS)
+@pytest.fixture(scope="module", params=sorted(KERNELS))
+def pendulum(compiled_example, request):
+    return compiled_example("double_pendulum", outputs=OUTPUTS, methods=METHODS, **KERNELS[request.param])
+
+
+@pytest.fixture(scope="module", params=sorted(KERNELS))
+def stiff(compiled_example, request):
+    return compiled_example("stiff_chain", outputs=OUTPUTS, methods=METHODS, **KERNELS[request.param])
+
+
+def kernel_of(system) -> str:
+    return "lanes" if f"{system.layout.prefix}_sweep_lanes" in system.layout.functions else "scalar"
 
 
 def alone(system, x0, params, *, t0=T0, t_end=T_END, h=H, method="rk4", stride=1):
@@ -101,6 +112,7 @@ def assert_results_equal(a, b):
 def test_parameter_grid_members_equal_simulate_alone(pendulum, method):
     result = sweep(pendulum, {"m2": M2, "l2": L2}, x0=X0, t0=T0, t_end=T_END, h=H, method=method)
     n = pendulum.layout.n
+    assert result.kernel == kernel_of(pendulum)
     assert result.completed and result.n_members == len(M2) * len(L2)
     assert result.columns == ("m2", "l2")
     assert_array_equal(result.grid[0], M2)

@@ -1,0 +1,168 @@
+"""The lane-group sweep kernel (``lcg_<m>_sweep_lanes``, `lanes.py`) against the scalar one.
+
+Independent source of every expected value: the scalar kernel ``lcg_<m>_sweep`` of the same
+build (members one after another, libm's sin/cos), itself checked against `simulate` in
+``test_sweep.py`` (where the lane kernel, built with libm trig, must match it bitwise too).
+Here the lane kernel uses its branch-free sin/cos: a member whose trig arguments stay beyond
+``LCG_TRIG_LIMIT`` goes through the scalar fallback with libm and must match bitwise; other
+members differ by the polynomials' rounding only, which over the short runs below stays far
+under 1e-9 (the double pendulum at h = 0.01 for 100 steps; measured ~1e-13).
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose, assert_array_equal
+
+from lagcodegen.lanes import DEFAULT_LANES
+from lagcodegen.simulate import Status
+from lagcodegen.sweep import sweep
+
+pytestmark = pytest.mark.compiler
+
+METHODS = ("euler", "rk4", "dopri5", "backward_euler")
+X0 = (0.6, -0.4, 0.0, 0.3)
+COMMON = dict(x0=X0, t0=0.25, t_end=1.25, h=0.01, progress=False)
+FIELDS = ("x_final", "q_max", "energy_error", "trajectories")
+STATES_ATOL = {"double": 1e-9, "float": 2e-3}  # fast vs libm sin/cos, 100 steps
+
+
+@pytest.fixture(scope="module")
+def pendulum(compiled_example):
+    return compiled_example("double_pendulum", outputs=("rhs", "energy"), methods=METHODS)
+
+
+def both(system, grid, **kwargs):
+    options = {**COMMON, **kwargs}
+    lanes = sweep(system, grid, kernel="lanes", **options)
+    scalar = sweep(system, grid, kernel="scalar", **options)
+    assert (lanes.kernel, scalar.kernel) == ("lanes", "scalar")
+    assert_array_equal(lanes.status, scalar.status)
+    assert_array_equal(lanes.steps_done, scalar.steps_done)
+    return lanes, scalar
+
+
+@pytest.mark.parametrize("method", ("euler", "rk4", "dopri5"))
+def test_fast_trig_lanes_match_scalar_kernel(pendulum, method):
+    grid = {"m2": (0.5, 1.0, 2.0), "q1": np.linspace(-2.5, 2.5, 7)}  # 21 members: a partial group
+    lanes, scalar = both(pendulum, grid, method=method, trajectories=True, stride=3)
+    assert_array_equal(lanes.status, Status.OK)
+    for name in FIELDS:
+        assert_allclose(getattr(lanes, name), getattr(scalar, name), rtol=0, atol=STATES_ATOL["double"],
+                        err_msg=name)
+
+
+def test_arguments_beyond_the_fast_range_use_libm_bitwise(pendulum):
+    """q1, q2 near 1e12 keep every sin/cos argument beyond LCG_TRIG_LIMIT: the lane falls back to
+    the scalar dynamics and energy with libm at every stage, so it equals the scalar kernel
+    exactly; its group neighbours (small angles) take the polynomial path."""
+    far = 1.0e12
+    members = {"q1": (far, 0.3, far + 0.5, -0.2), "q2": (far, 0.1, -far, 0.4)}
+    options = {**COMMON, "method": "rk4", "trajectories": True}
+    lanes = sweep(pendulum, members=members, kernel="lanes", **options)
+    scalar = sweep(pendulum, members=members, kernel="scalar", **options)
+    for name in FIELDS:
+        got, want = getattr(lanes, name), getattr(scalar, name)
+        assert_array_equal(got[[0, 2]], want[[0, 2]], err_msg=name)
+        assert_allclose(got[[1, 3]], want[[1, 3]], rtol=0, atol=STATES_ATOL["double"], err_msg=name)
+
+
+@pytest.mark.parametrize("method", ("euler", "rk4"))
+def test_failing_lanes_do_not_disturb_their_group(pendulum, method):
+    """Negative and zero masses (singular M from the first step) and a huge speed (non-finite
+    state after a few steps) share lane groups with healthy members: statuses, steps and the
+    last finite states equal the scalar kernel's, and each healthy member's results equal those
+    of a sweep over the healthy members alone (so the failures changed nothing around them)."""
+    m2 = (1.0, -1.0, 2.0, 0.0, 1.5, 1.0, 0.7, 1.2, -0.5, 1.0, 0.9)
+    speed = (0.3, 0.3, 0.3, 0.3, 0.3, 1e154, 0.3, 0.3, 0.3, 0.3, 1e154)
+    members = {"m2": m2, "q2_d": speed}
+    lanes, scalar = both(pendulum, None, members=members, method=method, trajectories=True)
+    failed = lanes.status != Status.OK
+    assert set(lanes.status[failed]) == {Status.SINGULAR_MASS_MATRIX, Status.NONFINITE_STATE}
+    singular = lanes.status == Status.SINGULAR_MASS_MATRIX
+    assert_array_equal(lanes.x_final[singular], scalar.x_final[singular])  # x0: failed at step 1
+    assert_allclose(lanes.x_final[failed], scalar.x_final[failed], rtol=1e-9, atol=0)  # sin/cos rounding
+    healthy = ~failed
+    alone = sweep(pendulum, members={k: np.asarray(v)[healthy] for k, v in members.items()}, kernel="lanes",
+                  method=method, trajectories=True, **COMMON)
+    for name in FIELDS:
+        assert_array_equal(getattr(lanes, name)[healthy], getattr(alone, name), err_msg=name)
+        assert_allclose(getattr(lanes, name)[healthy], getattr(scalar, name)[healthy], rtol=0,
+                        atol=STATES_ATOL["double"], err_msg=name)
+    assert np.isnan(lanes.trajectories[failed, -1]).all()
+
+
+def test_grouping_does_not_change_results(pendulum):
+    grid = {"m1": np.linspace(0.5, 2.0, 5), "q1": np.linspace(-1.0, 1.0, 4)}  # 20 members
+    base = sweep(pendulum, grid, threads=1, chunk_size=10**6, **COMMON)
+    for threads, chunk in ((1, 1), (2, 3), (2, None), (3, DEFAULT_LANES + 1)):
+        other = sweep(pendulum, grid, threads=threads, chunk_size=chunk, **COMMON)
+        for name in FIELDS + ("status", "steps_done"):
+            assert_array_equal(getattr(other, name), getattr(base, name), err_msg=name)
+
+
+def test_float_lanes_match_float_scalar(compiled_example):
+    system = compiled_example("double_pendulum", precision="float", outputs=("rhs", "energy"), methods=("rk4",))
+    lanes, scalar = both(system, {"m2": (0.5, 1.0, 2.0)}, method="rk4")
+    assert lanes.x_final.dtype == np.float32
+    assert_allclose(lanes.x_final, scalar.x_final, rtol=0, atol=STATES_ATOL["float"])
+
+
+def test_kernel_choice(pendulum, compiled_example):
+    grid = {"m2": (0.5, 1.0)}
+    assert sweep(pendulum, grid, method="rk4", **COMMON).kernel == "lanes"
+    assert sweep(pendulum, grid, method="backward_euler", **COMMON).kernel == "scalar"
+    with pytest.raises(ValueError, match="'backward_euler' is not an explicit Runge-Kutta"):
+        sweep(pendulum, grid, method="backward_euler", kernel="lanes", **COMMON)
+    with pytest.raises(ValueError, match="kernel must be one of"):
+        sweep(pendulum, grid, kernel="simd", **COMMON)
+    plain = compiled_example("double_pendulum", outputs=("rhs", "energy"), methods=("rk4",), lanes=0)
+    assert sweep(plain, grid, **COMMON).kernel == "scalar"
+    with pytest.raises(ValueError, match="built without the lane kernel"):
+        sweep(plain, grid, kernel="lanes", **COMMON)
+
+
+def test_c_refuses_methods_without_a_lane_stepper(pendulum):
+    """The C entry point itself returns LCG_UNKNOWN_METHOD for an implicit method's number."""
+    ffi, lib, layout = pendulum.ffi, pendulum.lib, pendulum.layout
+    x0 = np.array([X0], dtype=float)
+    p = np.array([[1.0, 1.0, 1.0, 1.0, 9.81]])
+    status, steps = np.full(1, -1, np.intc), np.zeros(1, np.int_)
+    out = [np.zeros((1, 4)), np.zeros((1, 2)), np.zeros(1)]
+    ptr = lambda a: ffi.from_buffer("double[]", a)  # noqa: E731
+    code = getattr(lib, f"{layout.prefix}_sweep_lanes")(
+        layout.methods.index("backward_euler"), 1, ptr(x0), ptr(p), 0.0, 0.01, 10, 1, 0, *map(ptr, out),
+        ffi.from_buffer("int[]", status), ffi.from_buffer("long[]", steps), ffi.NULL)
+    assert code == Status.UNKNOWN_METHOD and status[0] == -1
+
+
+def _unconstrained_examples():
+    from lagcodegen import catalog
+    from lagcodegen.model import Model
+
+    names = []
+    for name in catalog.EXAMPLES:
+        model = catalog.example(name)
+        if not (isinstance(model, Model) and model.constraints):
+            names.append(name)
+    return names
+
+
+@pytest.mark.parametrize("name", _unconstrained_examples())
+def test_every_catalog_model_lanes_equal_scalar_with_libm_trig(compiled_example, example_eom, name):
+    """Every unconstrained catalog model (its own symbol names beside the lane code's locals, its
+    own mass-matrix sparsity): the lane kernel built with libm trig equals the scalar kernel
+    bitwise over 11 members (a partial group) and 200 RK4 steps."""
+    if example_eom(name).m:
+        pytest.skip("constrained: the scalar kernel only")
+    system = compiled_example(name, outputs=("rhs", "energy"), methods=("rk4",), lane_trig="libm")
+    layout = system.layout
+    column = layout.parameters[0] if layout.parameters else layout.coordinates[0]
+    base = dict(layout.defaults).get(column, 1.0) or 1.0
+    options = dict(x0=[0.3 + 0.1 * i for i in range(2 * layout.n)], t_end=0.2, h=1e-3, method="rk4",
+                   progress=False, trajectories=True, stride=50)
+    grid = {column: base * np.linspace(0.8, 1.2, 11)}
+    lanes = sweep(system, grid, kernel="lanes", **options)
+    scalar = sweep(system, grid, kernel="scalar", **options)
+    for field in FIELDS + ("status", "steps_done"):
+        assert_array_equal(getattr(lanes, field), getattr(scalar, field), err_msg=field)
