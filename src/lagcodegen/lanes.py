@@ -9,8 +9,8 @@ vectorizes across members, ``lanes`` members per vector group.
 
 Inside that loop nothing may branch or call libm: the pivot test of the LDL^T sets a flag
 instead of returning, and sin/cos are branch-free polynomials (``templates/trig.c.j2``) valid
-for ``|x| <= LCG_TRIG_LIMIT`` (``LCG_TRIGF_LIMIT`` in float). A lane whose pivot failed or whose trig argument left that range
-(or was not finite) is recomputed afterwards by the scalar ``<prefix>_dynamics`` /
+for ``|x| <= LCG_TRIG_LIMIT`` (``LCG_TRIGF_LIMIT`` in float). A lane whose pivot failed or whose
+trig argument left that range (or was not finite) is recomputed afterwards by the scalar ``<prefix>_dynamics`` /
 ``<prefix>_energy`` with libm, which also yields the scalar kernel's status codes. With
 ``trig="libm"`` the loop calls libm's sin/cos itself (it no longer vectorizes), and every
 member's result equals the scalar kernel's bit for bit: the tests use it to prove the lane
