@@ -30,6 +30,13 @@
  * mpmath: below 0.75 ulp (tests/trig).
  * Needs IEEE arithmetic: under -ffast-math (__FAST_MATH__) every form calls libm instead.
  * ------------------------------------------------------------------------------------------ */
+#ifndef LCG_TRIG_INLINE
+#ifdef __GNUC__  /* inlined even in large kernels: a call would stop gcc vectorizing lane loops */
+#define LCG_TRIG_INLINE static inline __attribute__((always_inline))
+#else
+#define LCG_TRIG_INLINE static inline
+#endif
+#endif
 #ifndef LCG_TRIG_UNLIKELY
 #ifdef __GNUC__
 #define LCG_TRIG_UNLIKELY(condition) __builtin_expect(!!(condition), 0)  /* keeps libm calls off the hot path */
@@ -42,8 +49,8 @@
 #define LCG_TRIG_LIMIT 1.0e6
 
 #ifdef __FAST_MATH__
-static inline double lcg_sin_fast(double x) { return sin(x); }
-static inline double lcg_cos_fast(double x) { return cos(x); }
+LCG_TRIG_INLINE double lcg_sin_fast(double x) { return sin(x); }
+LCG_TRIG_INLINE double lcg_cos_fast(double x) { return cos(x); }
 #else
 typedef union { double value; unsigned long long bits; } lcg_trig_word;
 typedef char lcg_trig_word_is_64_bits[sizeof(unsigned long long) == sizeof(double) ? 1 : -1];
@@ -51,7 +58,7 @@ typedef char lcg_trig_word_is_64_bits[sizeof(unsigned long long) == sizeof(doubl
 typedef struct { double hi, lo, a, nb; } lcg_trig_reduced;
 
 /* x = n pi/2 + (hi + lo) and the quadrant signs; exact for |x| <= LCG_TRIG_LIMIT. */
-static inline lcg_trig_reduced lcg_trig_reduce(double x)
+LCG_TRIG_INLINE lcg_trig_reduced lcg_trig_reduce(double x)
 {
     const double shift = 0x1.8p52;  /* 1.5 * 2^52 */
     lcg_trig_word rounded;
@@ -78,7 +85,7 @@ static inline lcg_trig_reduced lcg_trig_reduce(double x)
 
 /* sin(x + y), |x| <= pi/4, y a tail of x: fdlibm __kernel_sin, the polynomial by Estrin's scheme
  * (shorter dependency chain than Horner). */
-static inline double lcg_trig_sin_kernel(double x, double y)
+LCG_TRIG_INLINE double lcg_trig_sin_kernel(double x, double y)
 {
     const double z = x * x, z2 = z * z, v = z * x;
     const double r = (8.33333333332248946124e-03 + z * -1.98412698298579493134e-04)
@@ -89,7 +96,7 @@ static inline double lcg_trig_sin_kernel(double x, double y)
 
 /* cos(x + y), |x| <= pi/4, y a tail of x: FreeBSD __kernel_cos (1 - z/2 summed with its
  * rounding error), the polynomial by Estrin's scheme. */
-static inline double lcg_trig_cos_kernel(double x, double y)
+LCG_TRIG_INLINE double lcg_trig_cos_kernel(double x, double y)
 {
     const double z = x * x, z2 = z * z;
     const double r = (4.16666666666666019037e-02 + z * -1.38888888888741095749e-03)
@@ -100,14 +107,14 @@ static inline double lcg_trig_cos_kernel(double x, double y)
 }
 
 /* sin x for |x| <= LCG_TRIG_LIMIT, branch-free. */
-static inline double lcg_sin_fast(double x)
+LCG_TRIG_INLINE double lcg_sin_fast(double x)
 {
     const lcg_trig_reduced t = lcg_trig_reduce(x);
     return lcg_trig_sin_kernel(t.hi, t.lo) * t.a - lcg_trig_cos_kernel(t.hi, t.lo) * t.nb;
 }
 
 /* cos x for |x| <= LCG_TRIG_LIMIT, branch-free. */
-static inline double lcg_cos_fast(double x)
+LCG_TRIG_INLINE double lcg_cos_fast(double x)
 {
     const lcg_trig_reduced t = lcg_trig_reduce(x);
     return lcg_trig_cos_kernel(t.hi, t.lo) * t.a + lcg_trig_sin_kernel(t.hi, t.lo) * t.nb;
@@ -116,7 +123,7 @@ static inline double lcg_cos_fast(double x)
 
 /* sin x for every double: the inline form within the limit, else sin (NaN and inf included).
  * The inline form is computed unconditionally, so sin and cos of one angle share it. */
-static inline double lcg_sin(double x)
+LCG_TRIG_INLINE double lcg_sin(double x)
 {
     double y = lcg_sin_fast(x);
     if (LCG_TRIG_UNLIKELY(!(fabs(x) <= LCG_TRIG_LIMIT))) y = sin(x);
@@ -125,7 +132,7 @@ static inline double lcg_sin(double x)
 
 /* cos x for every double: the inline form within the limit, else cos (NaN and inf included).
  * The inline form is computed unconditionally, so sin and cos of one angle share it. */
-static inline double lcg_cos(double x)
+LCG_TRIG_INLINE double lcg_cos(double x)
 {
     double y = lcg_cos_fast(x);
     if (LCG_TRIG_UNLIKELY(!(fabs(x) <= LCG_TRIG_LIMIT))) y = cos(x);

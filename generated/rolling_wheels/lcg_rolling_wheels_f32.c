@@ -29,6 +29,13 @@
  * over every float with |x| <= LCG_TRIGF_LIMIT: below 0.81 ulp (tests/trig).
  * Needs IEEE arithmetic: under -ffast-math (__FAST_MATH__) every form calls libm instead.
  * ------------------------------------------------------------------------------------------ */
+#ifndef LCG_TRIG_INLINE
+#ifdef __GNUC__  /* inlined even in large kernels: a call would stop gcc vectorizing lane loops */
+#define LCG_TRIG_INLINE static inline __attribute__((always_inline))
+#else
+#define LCG_TRIG_INLINE static inline
+#endif
+#endif
 #ifndef LCG_TRIG_UNLIKELY
 #ifdef __GNUC__
 #define LCG_TRIG_UNLIKELY(condition) __builtin_expect(!!(condition), 0)  /* keeps libm calls off the hot path */
@@ -41,15 +48,15 @@
 #define LCG_TRIGF_LIMIT 1.0e4F
 
 #ifdef __FAST_MATH__
-static inline float lcg_sinf_fast(float x) { return sinf(x); }
-static inline float lcg_cosf_fast(float x) { return cosf(x); }
+LCG_TRIG_INLINE float lcg_sinf_fast(float x) { return sinf(x); }
+LCG_TRIG_INLINE float lcg_cosf_fast(float x) { return cosf(x); }
 #else
 typedef union { float value; unsigned int bits; } lcg_trigf_word;
 typedef char lcg_trigf_word_is_32_bits[sizeof(unsigned int) == sizeof(float) ? 1 : -1];
 typedef struct { float hi, lo; unsigned int quadrant; } lcg_trigf_reduced;
 
 /* x = n pi/2 + (hi + lo), quadrant = n in its low bits; exact for |x| <= LCG_TRIGF_LIMIT. */
-static inline lcg_trigf_reduced lcg_trigf_reduce(float x)
+LCG_TRIG_INLINE lcg_trigf_reduced lcg_trigf_reduce(float x)
 {
     const float shift = 0x1.8p23F;  /* 1.5 * 2^23 */
     lcg_trigf_word rounded;
@@ -77,7 +84,7 @@ static inline lcg_trigf_reduced lcg_trigf_reduce(float x)
 }
 
 /* sin(x + y), |x| <= pi/4, y a tail of x (the fdlibm form of the correction). */
-static inline float lcg_trigf_sin_kernel(float x, float y)
+LCG_TRIG_INLINE float lcg_trigf_sin_kernel(float x, float y)
 {
     const float z = x * x, v = z * x;
     const float r = 8.3321608736E-3F + z * -1.9515295891E-4F;
@@ -85,7 +92,7 @@ static inline float lcg_trigf_sin_kernel(float x, float y)
 }
 
 /* cos(x + y), |x| <= pi/4, y a tail of x; 1 - z/2 summed with its rounding error. */
-static inline float lcg_trigf_cos_kernel(float x, float y)
+LCG_TRIG_INLINE float lcg_trigf_cos_kernel(float x, float y)
 {
     const float z = x * x;
     const float r = z * (4.166664568298827E-2F + z * (-1.388731625493765E-3F + z * 2.443315711809948E-5F));
@@ -94,7 +101,7 @@ static inline float lcg_trigf_cos_kernel(float x, float y)
 }
 
 /* s for n mod 4 = 0, c for 1, -s for 2, -c for 3, by bit operations (no branches). */
-static inline float lcg_trigf_pick(float s, float c, unsigned int n)
+LCG_TRIG_INLINE float lcg_trigf_pick(float s, float c, unsigned int n)
 {
     lcg_trigf_word ws, wc;
     ws.value = s;
@@ -104,14 +111,14 @@ static inline float lcg_trigf_pick(float s, float c, unsigned int n)
 }
 
 /* sin x for |x| <= LCG_TRIGF_LIMIT, branch-free. */
-static inline float lcg_sinf_fast(float x)
+LCG_TRIG_INLINE float lcg_sinf_fast(float x)
 {
     const lcg_trigf_reduced t = lcg_trigf_reduce(x);
     return lcg_trigf_pick(lcg_trigf_sin_kernel(t.hi, t.lo), lcg_trigf_cos_kernel(t.hi, t.lo), t.quadrant);
 }
 
 /* cos x = sin(x + pi/2) for |x| <= LCG_TRIGF_LIMIT, branch-free. */
-static inline float lcg_cosf_fast(float x)
+LCG_TRIG_INLINE float lcg_cosf_fast(float x)
 {
     const lcg_trigf_reduced t = lcg_trigf_reduce(x);
     return lcg_trigf_pick(lcg_trigf_sin_kernel(t.hi, t.lo), lcg_trigf_cos_kernel(t.hi, t.lo), t.quadrant + 1U);
@@ -120,7 +127,7 @@ static inline float lcg_cosf_fast(float x)
 
 /* sin x for every float: the inline form within the limit, else sinf (NaN and inf included).
  * The inline form is computed unconditionally, so sin and cos of one angle share it. */
-static inline float lcg_sinf(float x)
+LCG_TRIG_INLINE float lcg_sinf(float x)
 {
     float y = lcg_sinf_fast(x);
     if (LCG_TRIG_UNLIKELY(!(fabsf(x) <= LCG_TRIGF_LIMIT))) y = sinf(x);
@@ -129,7 +136,7 @@ static inline float lcg_sinf(float x)
 
 /* cos x for every float: the inline form within the limit, else cosf (NaN and inf included).
  * The inline form is computed unconditionally, so sin and cos of one angle share it. */
-static inline float lcg_cosf(float x)
+LCG_TRIG_INLINE float lcg_cosf(float x)
 {
     float y = lcg_cosf_fast(x);
     if (LCG_TRIG_UNLIKELY(!(fabsf(x) <= LCG_TRIGF_LIMIT))) y = cosf(x);
