@@ -20,7 +20,7 @@ import subprocess
 import sys
 import sysconfig
 import threading
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -68,20 +68,30 @@ class CompiledSystem:
     module_name: str
     layout: KernelLayout
     sources: CSources | None = field(default=None, repr=False, compare=False)
+    #: (sources, cache_dir, extra_compile_args) of the same model with the lane sweep kernel,
+    #: built on first use by `lane_variant` (it doubles the compile time, and only sweeps need it)
+    lane_build: tuple | None = field(default=None, repr=False, compare=False)
 
     def __reduce__(self):
-        return (_restore, (self.key, str(self.path), self.module_name, self.layout, self.sources))
+        return (_restore, (self.key, str(self.path), self.module_name, self.layout, self.sources, self.lane_build))
+
+    def lane_variant(self) -> "CompiledSystem | None":
+        """The same model built with the lane sweep kernel (compiled once, then cached), or None."""
+        if self.lane_build is None:
+            return None
+        sources, cache_dir, extra_compile_args = self.lane_build
+        return build_module(sources, cache_dir=cache_dir, extra_compile_args=extra_compile_args)
 
 
 def _restore(key: str, path: str, module_name: str, layout: KernelLayout,
-             sources: CSources | None = None) -> CompiledSystem:
+             sources: CSources | None = None, lane_build: tuple | None = None) -> CompiledSystem:
     if not Path(path).is_file():
         if sources is not None:  # another machine (a Dask worker): build or load from its own cache
-            return build_module(sources)
+            return replace(build_module(sources), lane_build=lane_build)
         raise BuildError(f"compiled module {path} of model {layout.model!r} no longer exists; "
                          "call build_module again")
     module = _import(path, module_name)
-    return CompiledSystem(module.ffi, module.lib, key, Path(path), module_name, layout, sources)
+    return CompiledSystem(module.ffi, module.lib, key, Path(path), module_name, layout, sources, lane_build)
 
 
 @functools.lru_cache(maxsize=None)

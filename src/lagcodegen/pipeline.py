@@ -10,6 +10,7 @@ from __future__ import annotations
 import os
 import pickle
 import tempfile
+from dataclasses import replace
 from pathlib import Path
 from typing import Mapping
 
@@ -52,7 +53,8 @@ def compile_model(model: Model | EquationsOfMotion, *, outputs=None, fixed: Mapp
         inline polynomials of ``templates/trig.c.j2``.
     lanes : int
         Members per vector group of the lane sweep kernel (``sweep`` uses it for explicit methods
-        of unconstrained models); 0 builds none.
+        of unconstrained models); 0: none. Its sources are rendered here, but compiled only when a
+        sweep first needs them (`CompiledSystem.lane_variant`): it doubles the compile time.
     lane_trig : {"fast", "libm"}
         sin/cos in the lane kernel: vectorizable polynomials, or libm (bitwise equal to the
         scalar sweep, slower); see `render_sources`.
@@ -77,13 +79,19 @@ def compile_model(model: Model | EquationsOfMotion, *, outputs=None, fixed: Mapp
     outputs += [o for o in needed if o not in outputs]
     key = _sources_key(eom, outputs, fixed, methods, precision, (trig, lanes, lane_trig))
     entry = cache.cache_dir(cache_dir) / "sources" / f"{key[:32]}.pickle"
-    sources = _load_sources(entry)
-    if sources is None:
+    stored = _load_sources(entry)
+    if stored is None:
         system = reduce_expressions(eom, outputs, fixed)
-        sources = render_sources(system, precision, methods=methods, trig=trig, lanes=lanes,
-                                 lane_trig=lane_trig)
-        _store_sources(entry, sources)
-    return build_module(sources, cache_dir=cache_dir, extra_compile_args=extra_compile_args)
+        sources = render_sources(system, precision, methods=methods, trig=trig)
+        with_lanes = render_sources(system, precision, methods=methods, trig=trig, lanes=lanes,
+                                    lane_trig=lane_trig) if lanes else None
+        stored = (sources, with_lanes if with_lanes is not None and f"{with_lanes.layout.prefix}_sweep_lanes" in with_lanes.layout.functions else None)
+        _store_sources(entry, stored)
+    sources, with_lanes = stored
+    compiled = build_module(sources, cache_dir=cache_dir, extra_compile_args=extra_compile_args)
+    if with_lanes is None:
+        return compiled
+    return replace(compiled, lane_build=(with_lanes, cache_dir, tuple(extra_compile_args)))
 
 
 def _sources_key(eom: EquationsOfMotion, outputs, fixed, methods, precision,
@@ -102,18 +110,22 @@ def _sources_key(eom: EquationsOfMotion, outputs, fixed, methods, precision,
     })
 
 
-def _load_sources(entry: Path) -> CSources | None:
+def _load_sources(entry: Path) -> tuple | None:
+    """(sources, sources with the lane kernel or None), or None when missing or unreadable."""
     try:
         with open(entry, "rb") as handle:
-            sources = pickle.load(handle)
+            stored = pickle.load(handle)
     except FileNotFoundError:
         return None
     except (OSError, pickle.UnpicklingError, EOFError, AttributeError, TypeError):  # corrupt: rebuild
         return None
-    return sources if isinstance(sources, CSources) else None
+    if (isinstance(stored, tuple) and len(stored) == 2 and isinstance(stored[0], CSources)
+            and (stored[1] is None or isinstance(stored[1], CSources))):
+        return stored
+    return None
 
 
-def _store_sources(entry: Path, sources: CSources) -> None:
+def _store_sources(entry: Path, sources: tuple) -> None:
     entry.parent.mkdir(parents=True, exist_ok=True)
     handle, temporary = tempfile.mkstemp(dir=entry.parent, suffix=".tmp")
     with os.fdopen(handle, "wb") as out:

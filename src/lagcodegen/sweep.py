@@ -206,6 +206,10 @@ def sweep(system: CompiledSystem, grid: Mapping | None = None, *, members: Mappi
     xs, ps = member_arrays(system, columns, values, x0, params)
     if project and not layout.n_constraints:
         raise ValueError(f"project needs holonomic constraints; model {layout.model!r} has none")
+    if kernel != "scalar" and system.lane_build is not None and _lanes(system, method, project, "auto") == 0:
+        lane_system = system.lane_variant()  # compiled on the first sweep that can use it
+        if _lanes(lane_system, method, project, "auto"):
+            system = lane_system
     lanes = _lanes(system, method, project, kernel)
     job = _Job(system, layout.methods.index(method), t0, h, n_steps, stride, track_energy, trajectories, project,
                lanes)
@@ -231,12 +235,12 @@ def _lanes(system: CompiledSystem, method: str, project: bool, kernel: str) -> i
         raise ValueError(f"kernel must be one of {KERNELS}, got {kernel!r}")
     layout = system.layout
     reason = None
-    if f"{layout.prefix}_sweep_lanes" not in layout.functions:
-        reason = f"model {layout.model!r} was built without the lane kernel (compile_model(lanes=0), or constrained)"
-    elif scheme_kind(get_scheme(method)) != KIND_EXPLICIT:
+    if scheme_kind(get_scheme(method)) != KIND_EXPLICIT:
         reason = f"method {method!r} is not an explicit Runge-Kutta method"
     elif project:
         reason = "projection onto the constraints runs on the scalar kernel only"
+    elif f"{layout.prefix}_sweep_lanes" not in layout.functions:
+        reason = f"model {layout.model!r} was built without the lane kernel (compile_model(lanes=0), or constrained)"
     if reason is None and kernel != "scalar":
         return int(getattr(system.lib, f"{layout.prefix.upper()}_LANES"))
     if kernel == "lanes":

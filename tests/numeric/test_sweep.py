@@ -61,7 +61,8 @@ def stiff(compiled_example, request):
 
 
 def kernel_of(system) -> str:
-    return "lanes" if f"{system.layout.prefix}_sweep_lanes" in system.layout.functions else "scalar"
+    """The kernel sweep() runs: a build with lanes compiles its lane variant on first use."""
+    return "lanes" if system.lane_build is not None else "scalar"
 
 
 def alone(system, x0, params, *, t0=T0, t_end=T_END, h=H, method="rk4", stride=1):

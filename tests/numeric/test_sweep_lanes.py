@@ -117,6 +117,9 @@ def test_kernel_choice(pendulum, compiled_example):
     with pytest.raises(ValueError, match="kernel must be one of"):
         sweep(pendulum, grid, kernel="simd", **COMMON)
     plain = compiled_example("double_pendulum", outputs=("rhs", "energy"), methods=("rk4",), lanes=0)
+    # a build with lanes compiles the lane kernel only when a sweep first needs it
+    assert pendulum.lane_build is not None and f"{pendulum.layout.prefix}_sweep_lanes" not in pendulum.layout.functions
+    assert plain.lane_build is None
     assert sweep(plain, grid, **COMMON).kernel == "scalar"
     with pytest.raises(ValueError, match="built without the lane kernel"):
         sweep(plain, grid, kernel="lanes", **COMMON)
@@ -124,7 +127,8 @@ def test_kernel_choice(pendulum, compiled_example):
 
 def test_c_refuses_methods_without_a_lane_stepper(pendulum):
     """The C entry point itself returns LCG_UNKNOWN_METHOD for an implicit method's number."""
-    ffi, lib, layout = pendulum.ffi, pendulum.lib, pendulum.layout
+    lane_system = pendulum.lane_variant()
+    ffi, lib, layout = lane_system.ffi, lane_system.lib, lane_system.layout
     x0 = np.array([X0], dtype=float)
     p = np.array([[1.0, 1.0, 1.0, 1.0, 9.81]])
     status, steps = np.full(1, -1, np.intc), np.zeros(1, np.int_)
