@@ -24,6 +24,7 @@ from __future__ import annotations
 from .csyntax import EmitError, literal as _literal, record as _record
 from .ldlt import ldlt_factor_lines, ldlt_substitution_lines
 from .printer import CPrinter
+from .stepper_context import tableau_stage_lines
 
 #: members per lane group: 8 doubles = two AVX2 (four SSE2) vectors; 8 measured a little faster than 4
 #: with SSE2 and AVX2 (benchmarks/bench_sweep.py)
@@ -154,23 +155,11 @@ def _dynamics_lines(system, names, printer, real: str, lanes: int) -> list:
 
 def _stage_lines(scheme, prefix: str, size: int) -> list:
     """Stages of one explicit tableau over all lanes at once (``size`` = 2n * lanes values), with
-    the same coefficient arrays and the same sums as the scalar stepper, so each lane rounds
-    exactly as the scalar step does."""
-    s, name = scheme.stages, f"{prefix}_{scheme.name}"
+    the scalar stepper's coefficient arrays and sums, so each lane rounds as the scalar step does."""
+    name = f"{prefix}_{scheme.name}"
 
-    def combination(weights, array) -> str:
-        return " + ".join(f"{name}_{array}[{index}] * k[{j * size} + m]" for index, j in weights)
+    def evaluate(i, state):
+        return [f"{prefix}_lanes_dynamics(t + {name}_c[{i}] * h, {state}, p, k + {i * size}, stage);",
+                f"{prefix}_lanes_first_failure(code, stage);"]
 
-    lines = []
-    for i in range(s):
-        state = "x"
-        weights = [(i * s + j, j) for j in range(i) if scheme.a[i][j] != 0]
-        if weights:
-            lines.append(f"for (m = 0; m < {size}; ++m) xs[m] = x[m] + h * ({combination(weights, 'a')});")
-            state = "xs"
-        lines.append(f"{prefix}_lanes_dynamics(t + {name}_c[{i}] * h, {state}, p, k + {i * size}, stage);")
-        lines.append(f"{prefix}_lanes_first_failure(code, stage);")
-    final = [(i, i) for i in range(s) if scheme.b[i] != 0]
-    lines.append(f"for (m = 0; m < {size}; ++m) xn[m] = x[m] + h * ({combination(final, 'b')});")
-    return lines
-
+    return tableau_stage_lines(scheme, prefix, size, evaluate, "xn[m] = x[m] + h * ")

@@ -101,21 +101,33 @@ def _tableau_record(scheme, real: str) -> dict:
 def _explicit_stage_lines(scheme, prefix: str, n: int) -> list:
     """Straight-line stages of one explicit tableau: only its nonzero a_ij and b_i, read from the
     method's coefficient arrays (constant indices, so the compiler folds them)."""
-    N, s, name = 2 * n, scheme.stages, f"{prefix}_{scheme.name}"
+    N, name = 2 * n, f"{prefix}_{scheme.name}"
 
-    def combination(weights, array) -> str:
-        return " + ".join(f"{name}_{array}[{index}] * k[{j * N} + m]" for index, j in weights)
+    def evaluate(i, state):
+        return [f"status = {prefix}_dynamics(t + {name}_c[{i}] * h, {state}, p, k + {i * N}, k + {i * N + n});",
+                "if (status != LCG_OK) return status;"]
 
     lines = [f"(void){name}_a;  /* all zero for one-stage methods */"] if not any(any(r) for r in scheme.a) else []
+    return lines + tableau_stage_lines(scheme, prefix, N, evaluate, "x[m] += h * ") + ["return LCG_OK;"]
+
+
+def tableau_stage_lines(scheme, prefix: str, size: int, evaluate, update: str) -> list:
+    """Stage loops of an explicit tableau over ``size`` values: xs = x + h sum_j a_ij k_j, then
+    ``evaluate(i, state)`` (lines that fill k_i), and finally ``update`` + h sum_i b_i k_i.
+    Shared by the scalar steppers and the lane kernel, so both round alike."""
+    s, name = scheme.stages, f"{prefix}_{scheme.name}"
+
+    def combination(weights, array) -> str:
+        return " + ".join(f"{name}_{array}[{index}] * k[{j * size} + m]" for index, j in weights)
+
+    lines = []
     for i in range(s):
         state = "x"
         weights = [(i * s + j, j) for j in range(i) if scheme.a[i][j] != 0]
         if weights:
-            lines.append(f"for (m = 0; m < {N}; ++m) xs[m] = x[m] + h * ({combination(weights, 'a')});")
+            lines.append(f"for (m = 0; m < {size}; ++m) xs[m] = x[m] + h * ({combination(weights, 'a')});")
             state = "xs"
-        lines.append(f"status = {prefix}_dynamics(t + {name}_c[{i}] * h, {state}, p, k + {i * N}, k + {i * N + n});")
-        lines.append("if (status != LCG_OK) return status;")
+        lines += evaluate(i, state)
     final = [(i, i) for i in range(s) if scheme.b[i] != 0]
-    lines.append(f"for (m = 0; m < {N}; ++m) x[m] += h * ({combination(final, 'b')});")
-    lines.append("return LCG_OK;")
+    lines.append(f"for (m = 0; m < {size}; ++m) {update}({combination(final, 'b')});")
     return lines
