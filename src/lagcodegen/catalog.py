@@ -187,22 +187,21 @@ def pendulum_chain(n: int = 3, route: str = "bodies", name: str | None = None) -
     params = tuple(m) + tuple(l) + (g,)
     values = {**{mi: 1.0 for mi in m}, **{li: 1.0 for li in l}, g: 9.81}
     name = name or f"pendulum_chain_{n}"
-    x, y, positions = sp.S.Zero, sp.S.Zero, []
-    for qi, li in zip(q, l):
-        x, y = x + li * sp.sin(qi), y - li * sp.cos(qi)
-        positions.append((x, y))
-    points = {f"bob{i + 1}": pos for i, pos in enumerate(positions)}
     if route == "energies":
+        x, y, positions = sp.S.Zero, sp.S.Zero, []
+        for qi, li in zip(q, l):
+            x, y = x + li * sp.sin(qi), y - li * sp.cos(qi)
+            positions.append((x, y))
         T = sum(mi * (px.diff(TIME) ** 2 + py.diff(TIME) ** 2) / 2 for mi, (px, py) in zip(m, positions))
         V = sum(mi * g * py for mi, (_, py) in zip(m, positions))
-        return Model(name, q, params, kinetic_energy=T, potential_energy=V, points=points,
-                     parameter_values=values)
+        return Model(name, q, params, kinetic_energy=T, potential_energy=V,
+                     points={f"bob{i + 1}": pos for i, pos in enumerate(positions)}, parameter_values=values)
     N, O = me.ReferenceFrame("N"), me.Point("O")
-    bodies, previous = [], O
+    bodies, points, previous = [], {}, O
     for i, (qi, li, mi) in enumerate(zip(q, l, m)):
         bob = previous.locatenew(f"P{i + 1}", li * (sp.sin(qi) * N.x - sp.cos(qi) * N.y))
         bodies.append(me.Particle(f"bob{i + 1}", bob, mi))
-        previous = bob
+        points[f"bob{i + 1}"] = previous = bob
     return Model(name, q, params, bodies=bodies, gravity=-g * N.y, frame=N, origin=O, points=points,
                  parameter_values=values)
 

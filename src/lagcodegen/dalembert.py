@@ -57,10 +57,11 @@ def derive_from_bodies(model: Model) -> EquationsOfMotion:
     pair_mass: dict = {}   # ((component, s), (component, s')) -> masses of bodies holding both terms
     term_mass: dict = {}   # (component, s) -> masses of bodies holding s
     M_sum, F_sum = GroupedSum(), GroupedSum()
-    T, body_terms = [], []
+    T, body_terms, positions = [], [], {}
     for body in model.bodies:
         m = to_plain(body.mass, f"mass of {body.name}")
         r = to_plain(components(body.masscenter.pos_from(O), N), f"position of {body.name}")
+        positions[body.masscenter] = r
         terms = [(c, s) for c in range(3) for s in sp.Add.make_args(r[c]) if s != 0]
         body_terms.append((m, terms))
         for a in terms:
@@ -104,7 +105,7 @@ def derive_from_bodies(model: Model) -> EquationsOfMotion:
         Q = to_plain(model.generalized_forces.get(c, 0), f"generalized force on {c}")
         F[j] = F_sum.value(j) + inertia[j] - Vx.diff(q[j]) - R.diff(u[j]) + Q
     return assemble(model, coords, speeds, q, u, M, F, sp.Matrix(u), sp.Add(*T), sp.Add(Vx, *V), to_plain,
-                    inputs_checked=True)
+                    inputs_checked=True, positions=positions)
 
 
 def _velocity(terms, motion, q, u, t) -> list:

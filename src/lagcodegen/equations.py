@@ -161,13 +161,18 @@ def check_mass_matrix(M: sp.Matrix, coords, u) -> None:
 
 
 # -- assembly ---------------------------------------------------------------------------------
-def assemble(model, coords, speeds, q, u, M, F, K, T, V, to_plain, inputs_checked=False) -> EquationsOfMotion:
+def assemble(model, coords, speeds, q, u, M, F, K, T, V, to_plain, inputs_checked=False,
+             positions=None) -> EquationsOfMotion:
     """The equations object; M and F are searched for undeclared symbols unless every input
-    went through a ``to_plain`` that checks them (``inputs_checked``)."""
+    went through a ``to_plain`` that checks them (``inputs_checked``). ``positions`` maps Points
+    whose components in the model's frame are already known (in plain symbols)."""
     if not inputs_checked:
         check_declared([("mass matrix", M), ("forcing", F)], model.parameters, (), extra=q + u)
-    points = []
+    points, positions = [], positions or {}
     for name, where in model.points.items():
+        if isinstance(where, me.Point) and where in positions:
+            points.append((name, sp.ImmutableMatrix(positions[where])))
+            continue
         if isinstance(where, me.Point):
             pos = components(where.pos_from(model.origin), model.frame)
         else:

@@ -36,14 +36,20 @@ class GroupedSum:
 
     def value(self, index):
         terms = self.entries.get(index, {})
+        grouped = _by_coefficient(terms)
         for _ in range(2):  # a Pythagorean merge can produce a term that already exists
             regrouped: dict = {}
-            for coefficient, group in _by_coefficient(terms).items():
-                for term in merge_pythagorean(group):
+            merged = False
+            for coefficient, group in grouped.items():
+                kept = merge_pythagorean(group)
+                merged |= len(kept) < len(group)
+                for term in kept:
                     coeff, rest = term.as_coeff_Mul()
                     regrouped.setdefault(rest, []).append(coeff * coefficient)
-            terms = regrouped
-        return sp.Add(*[c * sp.Add(*group) for c, group in _by_coefficient(terms).items()])
+            if not merged:
+                break
+            grouped = _by_coefficient(regrouped)
+        return sp.Add(*[c * sp.Add(*group) for c, group in grouped.items()])
 
 
 def _by_coefficient(terms: dict) -> dict:
@@ -85,7 +91,7 @@ def merge_pythagorean(terms: list) -> list:
         for i, term in enumerate(terms):
             for factor in sp.Mul.make_args(term):
                 if factor.is_Pow and factor.exp == 2 and isinstance(factor.base, (sp.sin, sp.cos)):
-                    rest = term / factor
+                    rest = sp.Mul(*[f for f in sp.Mul.make_args(term) if f is not factor])
                     key = (rest, factor.base.args[0])
                     partner = seen.get((key, sp.cos if isinstance(factor.base, sp.sin) else sp.sin))
                     if partner is not None:

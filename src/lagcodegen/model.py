@@ -19,6 +19,8 @@ import sympy as sp
 import sympy.physics.mechanics as me
 from sympy.core.function import AppliedUndef
 
+from .grouping import components
+
 TIME = me.dynamicsymbols._t
 
 ROUTE_ENERGIES = "energies"
@@ -230,7 +232,7 @@ class Model:
         if self.gravity is not None:
             if not isinstance(self.gravity, me.Vector):
                 raise ModelError(f"gravity must be a sympy.physics.vector Vector (e.g. -g*N.y), got {self.gravity!r}")
-            exprs.append(("gravity", self.gravity.to_matrix(self.frame)))
+            exprs.append(("gravity", components(self.gravity, self.frame)))
         for i, phi in enumerate(self.constraints):
             if phi.atoms(sp.Derivative):
                 raise ModelError(f"constraint {i} ({phi}) contains speeds: only holonomic constraints "
