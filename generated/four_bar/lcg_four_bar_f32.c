@@ -608,13 +608,17 @@ static int lcg_four_bar_f32_finite(const float *x)
 }
 
 /* classical Runge-Kutta (order 4): one step of x at t, its 4 stage(s) unrolled from the
- * coefficient arrays above; work holds 4 stage derivatives and a stage state. */
-static int lcg_four_bar_f32_rk4_step(float t, float *x, const float *p, float h, float *work)
+ * coefficient arrays above; work holds 4 stage derivatives and a stage state. The
+ * parameters are copied to a local array, which no store to x or work can alias, so the
+ * compiler keeps them (and products of them) in registers across the stages. */
+static int lcg_four_bar_f32_rk4_step(float t, float *x, const float *parameters, float h, float *work)
 {
+    float p[11];
     float *k = work;
     float *xs = work + 4 * 6;
     int m, status;
     (void)xs;
+    for (m = 0; m < 11; ++m) p[m] = parameters[m];
     status = lcg_four_bar_f32_dynamics(t + lcg_four_bar_f32_rk4_c[0] * h, x, p, k + 0, k + 3);
     if (status != LCG_OK) return status;
     for (m = 0; m < 6; ++m) xs[m] = x[m] + h * (lcg_four_bar_f32_rk4_a[4] * k[0 + m]);

@@ -1140,13 +1140,17 @@ static int lcg_pendulum_chain_5_finite(const double *x)
 }
 
 /* classical Runge-Kutta (order 4): one step of x at t, its 4 stage(s) unrolled from the
- * coefficient arrays above; work holds 4 stage derivatives and a stage state. */
-static int lcg_pendulum_chain_5_rk4_step(double t, double *x, const double *p, double h, double *work)
+ * coefficient arrays above; work holds 4 stage derivatives and a stage state. The
+ * parameters are copied to a local array, which no store to x or work can alias, so the
+ * compiler keeps them (and products of them) in registers across the stages. */
+static int lcg_pendulum_chain_5_rk4_step(double t, double *x, const double *parameters, double h, double *work)
 {
+    double p[11];
     double *k = work;
     double *xs = work + 4 * 10;
     int m, status;
     (void)xs;
+    for (m = 0; m < 11; ++m) p[m] = parameters[m];
     status = lcg_pendulum_chain_5_dynamics(t + lcg_pendulum_chain_5_rk4_c[0] * h, x, p, k + 0, k + 5);
     if (status != LCG_OK) return status;
     for (m = 0; m < 10; ++m) xs[m] = x[m] + h * (lcg_pendulum_chain_5_rk4_a[4] * k[0 + m]);

@@ -230,14 +230,21 @@ def _compile_entry(sources, root, entry, module_name, flags, command, compiler, 
     try:
         (tmp / sources.header_name).write_text(sources.header, encoding="utf-8")
         (tmp / sources.source_name).write_text(sources.source, encoding="utf-8")
-        ffibuilder = cffi.FFI()
-        ffibuilder.cdef(sources.cdef)
-        ffibuilder.set_source(module_name, f'#include "{sources.header_name}"',
-                              sources=[str(tmp / sources.source_name)], include_dirs=[str(tmp)],
-                              extra_compile_args=list(flags))
         so_name = module_name + _EXT_SUFFIX
-        if os.name == "posix":
-            built = _compile_in_parallel(ffibuilder, tmp, sources, module_name, flags, command, so_name)
+        kernels = _start_kernel_compile(tmp, sources, flags, command) if os.name == "posix" else None
+        try:
+            ffibuilder = cffi.FFI()
+            ffibuilder.cdef(sources.cdef)
+            ffibuilder.set_source(module_name, f'#include "{sources.header_name}"',
+                                  sources=[str(tmp / sources.source_name)], include_dirs=[str(tmp)],
+                                  extra_compile_args=list(flags))
+        except BaseException:
+            if kernels is not None:
+                kernels[1].kill()
+                kernels[1].communicate()
+            raise
+        if kernels is not None:
+            built = _compile_in_parallel(ffibuilder, tmp, kernels, module_name, flags, command, so_name)
         else:
             with _compiler_env(compiler):
                 built = Path(ffibuilder.compile(tmpdir=str(tmp), verbose=False))
@@ -258,24 +265,37 @@ def _compile_entry(sources, root, entry, module_name, flags, command, compiler, 
             shutil.rmtree(tmp, ignore_errors=True)
 
 
-def _compile_in_parallel(ffibuilder, tmp: Path, sources, module_name, flags, command, so_name) -> Path:
-    """Compile the kernels and cffi's wrapper at the same time, then link them (POSIX).
+def _start_kernel_compile(tmp: Path, sources, flags, command) -> tuple:
+    """Start compiling the kernels (POSIX) before cffi parses the cdef and writes its wrapper,
+    so that the longest job starts first. Returns (argv, process)."""
+    shared = shlex.split(sysconfig.get_config_var("CCSHARED") or "-fPIC")
+    argv = [*command, *flags, *shared, "-I", str(tmp), "-c", str(tmp / sources.source_name),
+            "-o", str(tmp / "kernels.o")]
+    return argv, subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+
+
+def _compile_in_parallel(ffibuilder, tmp: Path, kernels: tuple, module_name, flags, command, so_name) -> Path:
+    """Compile cffi's wrapper while the kernels compile (``kernels`` from `_start_kernel_compile`),
+    then link them (POSIX).
 
     The two translation units are independent: the kernels get ``flags``, the wrapper (glue that
     includes Python.h) a quick -O1. Running both at once and skipping setuptools roughly halves a
     cold build on two cores. A failure raises cffi.VerificationError like cffi's own build.
     """
     wrapper = tmp / f"{module_name}.c"
-    with contextlib.redirect_stdout(io.StringIO()):  # cffi announces "generating <file>"
-        ffibuilder.emit_c_code(str(wrapper))
+    try:
+        with contextlib.redirect_stdout(io.StringIO()):  # cffi announces "generating <file>"
+            ffibuilder.emit_c_code(str(wrapper))
+    except BaseException:
+        kernels[1].kill()
+        kernels[1].communicate()
+        raise
     shared = shlex.split(sysconfig.get_config_var("CCSHARED") or "-fPIC")
     include = sysconfig.get_paths()["include"]
     wrapper_flags = [f for f in flags if not f.startswith("-O")] + ["-O1"]
-    jobs = [[*command, *flags, *shared, "-I", str(tmp), "-c", str(tmp / sources.source_name),
-             "-o", str(tmp / "kernels.o")],
-            [*command, *wrapper_flags, *shared, "-I", str(tmp), "-I", include, "-c", str(wrapper),
-             "-o", str(tmp / "wrapper.o")]]
-    running = [subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True) for argv in jobs]
+    jobs = [kernels[0], [*command, *wrapper_flags, *shared, "-I", str(tmp), "-I", include, "-c", str(wrapper),
+                         "-o", str(tmp / "wrapper.o")]]
+    running = [kernels[1], subprocess.Popen(jobs[1], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)]
     outputs = [process.communicate()[0] for process in running]
     for argv, process, output in zip(jobs, running, outputs):
         if process.returncode != 0:

@@ -17,5 +17,7 @@ def comment_text(text: str) -> str:
             .replace("\\n", "\\\\n").replace("\n", "\\n").replace("\r", "\\r"))
 
 
-def record(decl: str, doc: str, body: list, static: bool = False) -> dict:
-    return {"decl": ("static " if static else "") + decl, "doc": doc, "body": body, "static": static}
+def record(decl: str, doc: str, body: list, static: bool = False, hot: bool = False) -> dict:
+    """A C function for the templates; ``hot``: static and always inlined (LCG_HOT_INLINE)."""
+    qualifier = "static LCG_HOT_INLINE " if hot else "static " if static else ""
+    return {"decl": qualifier + decl, "doc": doc, "body": body, "static": static or hot, "hot": hot}

@@ -4,6 +4,7 @@ The printer writes the maths; Jinja2 templates in ``templates/`` write the layou
 """
 from __future__ import annotations
 
+import functools
 import hashlib
 from dataclasses import dataclass
 from pathlib import Path
@@ -17,7 +18,7 @@ from .lanes import lane_context
 from .ldlt import ldlt_factor_lines, ldlt_solve_lines, ldlt_substitution_lines
 from .model import TIME
 from .printer import DEFAULT_TRIG, TRIG_MODES, CPrinter, mangle
-from .stepper_context import stepper_context
+from .stepper_context import hot_dynamics, stepper_context
 
 __all__ = ["CSources", "EmitError", "KernelLayout", "render_sources", "template_dir", "comment_text",
            "trig_source"]
@@ -105,7 +106,10 @@ def template_dir() -> Path:
     return Path(__file__).resolve().parents[2] / "templates"
 
 
+@functools.lru_cache(maxsize=1)
 def _environment() -> jinja2.Environment:
+    """One environment per process: it keeps the compiled templates, which cost more than a
+    render (the lane variant and every later model reuse them)."""
     return jinja2.Environment(
         loader=jinja2.FileSystemLoader(str(template_dir())), undefined=jinja2.StrictUndefined,
         trim_blocks=True, lstrip_blocks=True, keep_trailing_newline=True, autoescape=False)
@@ -183,7 +187,7 @@ def render_sources(system: ReducedSystem, precision: str = "double", model_name:
     real = precision
     functions = []
     if any(out in system.outputs for out in ("accel", "rhs", "multipliers")):
-        functions.append(_dynamics_record(system, names, printer, real))
+        functions += _dynamics_records(system, names, printer, real)
         if system.n_constraints and any(out in system.outputs for out in ("accel", "rhs")):
             m, prefix = system.n_constraints, names.prefix
             functions.append(record(
@@ -364,8 +368,9 @@ def _function_record(system, kernel, names, printer, real, output):
     raise EmitError(f"unknown output {output!r}")
 
 
-def _dynamics_record(system, names, printer, real) -> dict:
-    """Static kernel behind accel and rhs: K, M, F with joint CSE, then an unrolled LDL^T solve."""
+def _dynamics_records(system, names, printer, real) -> list:
+    """Static kernel behind accel and rhs: K, M, F with joint CSE, then an unrolled LDL^T solve
+    (with an always-inlined copy for the explicit steppers when it is small, `hot_dynamics`)."""
     kernel = system.kernel("dynamics")
     n, prefix = len(system.q), names.prefix
     body = _body_head(kernel, names, printer, real, touches_state=system.kinematics_identity)
@@ -389,14 +394,20 @@ def _dynamics_record(system, names, printer, real) -> dict:
     if not m:
         body += ldlt_solve_lines(n, nonzero, real, failure)
         body.append("return LCG_OK;")
-        return record(f"int {prefix}_dynamics({real} t, const {real} *x, const {real} *p, {real} *qd, {real} *ud)",
-                      "K, M and F with shared temporaries, then M ud = F by LDL^T.", body, static=True)
+        signature = f"({real} t, const {real} *x, const {real} *p, {real} *qd, {real} *ud)"
+        doc = "K, M and F with shared temporaries, then M ud = F by LDL^T."
+        if not hot_dynamics(system):
+            return [record(f"int {prefix}_dynamics{signature}", doc, body, static=True)]
+        return [record(f"int {prefix}_dynamics_hot{signature}",
+                       doc[:-1] + ": inlined into every explicit Runge-Kutta stage.", body, hot=True),
+                record(f"int {prefix}_dynamics{signature}", "The same, as one function for the other callers.",
+                       [f"return {prefix}_dynamics_hot(t, x, p, qd, ud);"], static=True)]
     body += _constrained_solve_lines(kernel, printer, real, n, m, nonzero, failure, prefix)
-    return record(f"int {prefix}_dynamics_constrained({real} t, const {real} *x, const {real} *p, {real} *qd, "
+    return [record(f"int {prefix}_dynamics_constrained({real} t, const {real} *x, const {real} *p, {real} *qd, "
                   f"{real} *ud, {real} *lam, {real} *Q)",
                   "K, M, F, A = dphi/dq and gamma with shared temporaries; M ud + A^T lam = F, A ud = gamma "
                   "by the range-space method (LDL^T of M, Cholesky of A M^-1 A^T); Q = A^T lam if not NULL.",
-                  body, static=True)
+                  body, static=True)]
 
 
 def _constrained_solve_lines(kernel, printer, real, n, m, nonzero, failure, prefix) -> list:
@@ -502,7 +513,8 @@ def _context(system: ReducedSystem, names: _Names, layout: KernelLayout, functio
         "point_rows": point_rows, "has_fixed": bool(fixed_rows),
         "status_codes": [{"name": c, "value": v, "doc": d} for c, v, d in STATUS_CODES],
         "prototypes": [f for f in functions if not f["static"]], "functions": functions,
-        "has_dynamics": any(f["decl"].startswith(f"static int {names.prefix}_dynamics") for f in functions),
+        "has_dynamics": any(f" {names.prefix}_dynamics" in f["decl"] for f in functions),
+        "has_hot": any(f["hot"] for f in functions),
         "has_constraints": system.n_constraints > 0, "n_constraints": system.n_constraints,
         "n_constraint_matrix": system.n_constraints * n, "n_constraints_squared": system.n_constraints ** 2,
         "has_constraint_terms": "constraints" in system.outputs,

@@ -7,6 +7,8 @@ and every option, so loading an unchanged model again skips CSE and rendering as
 """
 from __future__ import annotations
 
+import functools
+import hashlib
 import os
 import pickle
 import tempfile
@@ -96,7 +98,8 @@ def compile_model(model: Model | EquationsOfMotion, *, outputs=None, fixed: Mapp
 
 def _sources_key(eom: EquationsOfMotion, outputs, fixed, methods, precision,
                  code_options=(DEFAULT_TRIG, 0, "fast")) -> str:
-    """sha256 of everything render_sources' output depends on (equations, options, templates)."""
+    """sha256 of everything render_sources' output depends on (equations, options, templates and
+    the code that reduces and renders them)."""
     templates = sorted(template_dir().glob("*.j2"))
     expressions = (eom.mass_matrix, eom.forcing, eom.kinematics, eom.energy, eom.points, eom.constraints,
                    eom.constraint_jacobian, eom.constraint_rate, eom.constraint_bias, eom.q, eom.u)
@@ -107,7 +110,18 @@ def _sources_key(eom: EquationsOfMotion, outputs, fixed, methods, precision,
         "options": repr((list(outputs), sorted((str(k), float(v)) for k, v in (fixed or {}).items()),
                          list(methods), precision, code_options)),
         "templates": "".join(path.name + path.read_text() for path in templates),
+        "code": _package_digest(),
     })
+
+
+@functools.lru_cache(maxsize=1)
+def _package_digest() -> str:
+    """sha256 over this package's modules: an edited emitter must not be served stale sources
+    from the cache under an unchanged version number."""
+    digest = hashlib.sha256()
+    for path in sorted(Path(__file__).parent.glob("*.py")):
+        digest.update(path.name.encode() + b"\0" + path.read_bytes())
+    return digest.hexdigest()
 
 
 def _load_sources(entry: Path) -> tuple | None:

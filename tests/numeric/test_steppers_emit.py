@@ -1,0 +1,111 @@
+"""What the explicit steppers compute, and that the sources cache follows the emitter's code.
+
+- A step evaluates only the stages whose derivatives reach the result (`needed_stages`):
+  Dormand-Prince's 7th stage exists for the embedded error estimate (b_7 = 0) and is skipped.
+  The expected sets come from the tableaux as printed in Hairer-Norsett-Wanner I, Table II.5.2
+  (dopri5) and Butcher's classical RK4, not from the code under test.
+- A small dynamics kernel is inlined into the stages (`hot_dynamics`); the numbers a step
+  produces do not depend on that choice (compared with a build that calls it).
+- The rendered-sources cache key covers the package's own modules, so an edited emitter is not
+  served sources rendered by the old one.
+"""
+from __future__ import annotations
+
+import re
+
+import numpy as np
+import pytest
+
+from lagcodegen import catalog, pipeline, stepper_context
+from lagcodegen.cse import reduce_expressions
+from lagcodegen.derive import derive_equations
+from lagcodegen.emit import render_sources
+from lagcodegen.stepper_context import needed_stages
+from lagcodegen.tableaux import ButcherTableau, get_tableau
+
+
+def _stepper_source(source: str, prefix: str, method: str) -> str:
+    start = source.index(f"static int {prefix}_{method}_step(")
+    return source[start:source.index("\n}\n", start)]
+
+
+def test_dormand_prince_skips_its_error_estimate_stage():
+    assert needed_stages(get_tableau("dopri5")) == [True] * 6 + [False]
+
+
+@pytest.mark.parametrize("name", ["euler", "heun", "kutta3", "rk4", "rk38"])
+def test_classical_methods_need_every_stage(name):
+    assert all(needed_stages(get_tableau(name)))
+
+
+def test_stage_feeding_only_a_needed_stage_is_kept():
+    # b = (0, 0, 1, 0): stages 1 and 2 have b_i = 0 but feed stage 3 (a_21, a_32 nonzero);
+    # stage 4 feeds nothing. Expected by reading the tableau.
+    tableau = ButcherTableau("padded", ((0, 0, 0, 0), ("1/2", 0, 0, 0), (0, 1, 0, 0), (0, 0, 1, 0)),
+                             (0, 0, 1, 0), (0, "1/2", 1, 1), 1, "padded")
+    assert needed_stages(tableau) == [True, True, True, False]
+
+
+@pytest.fixture(scope="module")
+def double_pendulum_system():
+    eom = derive_equations(catalog.double_pendulum())
+    return reduce_expressions(eom, ["rhs"], None)
+
+
+def test_rendered_dopri5_step_evaluates_six_stages(double_pendulum_system):
+    sources = render_sources(double_pendulum_system, methods=["dopri5", "rk4"])
+    prefix = sources.layout.prefix
+    dopri5 = _stepper_source(sources.source, prefix, "dopri5")
+    rk4 = _stepper_source(sources.source, prefix, "rk4")
+    assert len(re.findall(rf"{prefix}_dynamics\w*\(", dopri5)) == 6
+    assert len(re.findall(rf"{prefix}_dynamics\w*\(", rk4)) == 4
+
+
+def test_small_dynamics_is_inlined_and_large_is_called(double_pendulum_system):
+    small = render_sources(double_pendulum_system, methods=["rk4"])
+    assert "static LCG_HOT_INLINE int lcg_double_pendulum_dynamics_hot(" in small.source
+    assert "lcg_double_pendulum_dynamics_hot(" in _stepper_source(small.source, "lcg_double_pendulum", "rk4")
+    chain = reduce_expressions(derive_equations(catalog.pendulum_chain(6)), ["rhs"], None)
+    assert chain.kernel("dynamics").ops_after > stepper_context.HOT_DYNAMICS_MAX_OPS
+    large = render_sources(chain, methods=["rk4"])
+    assert "LCG_HOT_INLINE" not in large.source
+    assert "_dynamics_hot" not in large.source
+
+
+def test_inlined_stages_give_the_same_numbers_as_calls(monkeypatch, tmp_path):
+    """The same steps with the dynamics inlined and called: equal to rounding (the reference
+    is the called build, whose RK4 the order tests check against DOP853)."""
+    from lagcodegen.simulate import simulate
+
+    model = catalog.double_pendulum()
+    x0 = {"q1": 1.0, "q2": 0.5, "q1_d": 0.0, "q2_d": 0.0}
+    runs = {}
+    for hot_limit in (stepper_context.HOT_DYNAMICS_MAX_OPS, -1):
+        monkeypatch.setattr(stepper_context, "HOT_DYNAMICS_MAX_OPS", hot_limit)
+        system = pipeline.compile_model(model, methods=["rk4", "dopri5"], cache_dir=tmp_path / f"limit{hot_limit}")
+        source = (system.path.parent / f"{system.layout.prefix}.c").read_text()
+        assert ("_dynamics_hot" in source) == (hot_limit >= 0)
+        runs[hot_limit] = [simulate(system, x0, t_end=2.0, h=1e-2, method=m).x for m in ("rk4", "dopri5")]
+    for inlined, called in zip(runs[stepper_context.HOT_DYNAMICS_MAX_OPS], runs[-1]):
+        np.testing.assert_allclose(inlined, called, rtol=1e-13, atol=1e-13)
+
+
+def test_sources_key_follows_the_package_code(monkeypatch):
+    eom = derive_equations(catalog.double_pendulum())
+    args = (eom, ["rhs"], None, ("rk4",), "double")
+    key = pipeline._sources_key(*args)
+    assert pipeline._sources_key(*args) == key
+    monkeypatch.setattr(pipeline, "_package_digest", lambda: "an edited emitter")
+    assert pipeline._sources_key(*args) != key
+
+
+def test_package_digest_covers_the_emitter_modules():
+    import hashlib
+    from pathlib import Path
+
+    package = Path(pipeline.__file__).parent
+    digest = hashlib.sha256()
+    for path in sorted(package.glob("*.py")):
+        digest.update(path.name.encode() + b"\0" + path.read_bytes())
+    assert pipeline._package_digest() == digest.hexdigest()
+    assert {"stepper_context.py", "emit.py", "cse.py", "printer.py"} <= {p.name for p in package.glob("*.py")}
