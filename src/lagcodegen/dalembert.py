@@ -41,9 +41,14 @@ def _term_motion(term, q, u, t, cache: dict) -> _TermMotion:
     symbols = term.free_symbols
     partials = {k: sparse_diff(term, qk) for k, qk in enumerate(q) if qk in symbols}
     partials = {k: d for k, d in partials.items() if d != 0}
-    v = sp.Add(*[d * u[k] for k, d in partials.items()], sparse_diff(term, t))
-    v_symbols = v.free_symbols
-    a0 = sp.Add(*[sparse_diff(v, qk) * u[k] for k, qk in enumerate(q) if qk in v_symbols], sparse_diff(v, t))
+    if len(partials) == 1 and t not in symbols:  # s(q_k) alone: v = s' u_k, a0 = s'' u_k^2
+        (k, d), = partials.items()
+        v = d * u[k]
+        a0 = sp.Mul(sparse_diff(d, q[k]), sp.Pow(u[k], 2))
+    else:
+        v = sp.Add(*[d * u[k] for k, d in partials.items()], sparse_diff(term, t))
+        v_symbols = v.free_symbols
+        a0 = sp.Add(*[sparse_diff(v, qk) * u[k] for k, qk in enumerate(q) if qk in v_symbols], sparse_diff(v, t))
     cache[term] = motion = _TermMotion(partials, v, a0)
     return motion
 
@@ -88,23 +93,23 @@ def derive_from_bodies(model: Model) -> EquationsOfMotion:
                 if k <= j:
                     M_sum.add((j, k), mass, dj * dk)
     inertia = _inertia_forces(body_terms, motion, F_sum, q, u, t, n)
-    T += [m * sp.Add(*[_square(v) for v in _velocity(terms, motion, q, u, t)]) / 2 for m, terms in body_terms]
+    T += [sp.Mul(sp.S.Half, m, sp.Add(*[_square(v) for v in _velocity(terms, motion, q, u, t)]))
+          for m, terms in body_terms]
 
     for load in model.loads:
         _add_load(load, F_sum, to_plain, N, O, q, u)
 
-    M = sp.zeros(n, n)
-    for j in range(n):
-        for k in range(j + 1):
-            M[j, k] = M[k, j] = M_sum.value((j, k))
+    lower = {(j, k): M_sum.value((j, k)) for j in range(n) for k in range(j + 1)}
+    M = sp.ImmutableMatrix(n, n, lambda j, k: lower[max(j, k), min(j, k)])
     check_mass_matrix(M, coords, u)
     Vx = to_plain(model.potential_energy, "potential energy")
     R = to_plain(model.dissipation, "dissipation function")
-    F = sp.zeros(n, 1)
+    F = []
     for j, c in enumerate(coords):
         Q = to_plain(model.generalized_forces.get(c, 0), f"generalized force on {c}")
-        F[j] = F_sum.value(j) + inertia[j] - Vx.diff(q[j]) - R.diff(u[j]) + Q
-    return assemble(model, coords, speeds, q, u, M, F, sp.Matrix(u), sp.Add(*T), sp.Add(Vx, *V), to_plain,
+        F.append(F_sum.value(j) + inertia[j] - Vx.diff(q[j]) - R.diff(u[j]) + Q)
+    F = sp.ImmutableMatrix(F)
+    return assemble(model, coords, speeds, q, u, M, F, sp.ImmutableMatrix(u), sp.Add(*T), sp.Add(Vx, *V), to_plain,
                     inputs_checked=True, positions=positions)
 
 

@@ -161,6 +161,10 @@ def check_mass_matrix(M: sp.Matrix, coords, u) -> None:
 
 
 # -- assembly ---------------------------------------------------------------------------------
+def _immutable(matrix) -> sp.ImmutableMatrix:
+    return matrix if isinstance(matrix, sp.ImmutableMatrix) else sp.ImmutableMatrix(matrix)
+
+
 def assemble(model, coords, speeds, q, u, M, F, K, T, V, to_plain, inputs_checked=False,
              positions=None) -> EquationsOfMotion:
     """The equations object; M and F are searched for undeclared symbols unless every input
@@ -193,5 +197,5 @@ def assemble(model, coords, speeds, q, u, M, F, K, T, V, to_plain, inputs_checke
     return EquationsOfMotion(
         name=model.name, route=route, t=TIME, coordinates=tuple(coords), speeds=tuple(speeds),
         q=tuple(q), u=tuple(u), parameters=parameters, parameter_values=values,
-        mass_matrix=sp.ImmutableMatrix(M), forcing=sp.ImmutableMatrix(F), kinematics=sp.ImmutableMatrix(K),
+        mass_matrix=_immutable(M), forcing=_immutable(F), kinematics=_immutable(K),
         kinetic_energy=T, potential_energy=V, points=tuple(points), **constrained)

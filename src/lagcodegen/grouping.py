@@ -111,10 +111,10 @@ def components(vector, frame) -> sp.Matrix:
     Vector.to_matrix takes three dot products through the frames' bases; summing each stored
     (measure, frame) part rotated by the cached direction cosine matrix is cheaper.
     """
-    total = sp.zeros(3, 1)
-    for measure, part in vector.args:
-        total += measure if part == frame else frame.dcm(part) * measure
-    return total
+    parts = [measure if part == frame else frame.dcm(part) * measure for measure, part in vector.args]
+    if len(parts) == 1:
+        return parts[0]
+    return sp.Matrix([sp.Add(*[p[i] for p in parts]) for i in range(3)])  # one matrix, not a sum of them
 
 
 def sparse_diff(expr, x):
