@@ -9,6 +9,12 @@
 
 #include "lcg_bar_on_rollers.h"
 
+/* Left undefined, everything below is compiled. lagcodegen's own build compiles this file twice in
+ * parallel: LCG_BUILD_PART 1 (explicit integrators and the drivers) and 2 (everything else). */
+#ifndef LCG_BUILD_PART
+#define LCG_BUILD_PART 0
+#endif
+
 /* ------------------------------------------------------------------------------------------
  * Inline sine and cosine (printed as lcg_sin and lcg_cos): faster than the libm calls
  * because sin and cos of one angle share one argument reduction once inlined, and the
@@ -234,6 +240,7 @@ static int lcg_bar_on_rollers_dynamics(double t, const double *x, const double *
 {
     return lcg_bar_on_rollers_dynamics_hot(t, x, p, qd, ud);
 }
+#if LCG_BUILD_PART != 1
 
 /* Mass matrix M(q, t), row-major 1 x 1. */
 void lcg_bar_on_rollers_mass_matrix(double t, const double *x, const double *p, double *M)
@@ -247,6 +254,8 @@ void lcg_bar_on_rollers_mass_matrix(double t, const double *x, const double *p, 
     /* Mass matrix, lower triangle, mirrored */
     M[0] = 4*m1 + 3*m2;  /* M[0][0] */
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Forcing F(q, u, t), 1 values. */
 void lcg_bar_on_rollers_forcing(double t, const double *x, const double *p, double *F)
@@ -264,6 +273,8 @@ void lcg_bar_on_rollers_forcing(double t, const double *x, const double *p, doub
     /* Forcing */
     F[0] = -2*delta*g*(m1 + m2)*cos(beta)*((double)((x_d > 0) - (x_d < 0)))/r - g*(-2*m1 - 2*m2)*sin(beta);
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Generalized accelerations ud solving M ud = F; returns a status code. */
 int lcg_bar_on_rollers_accel(double t, const double *x, const double *p, double *ud)
@@ -271,12 +282,16 @@ int lcg_bar_on_rollers_accel(double t, const double *x, const double *p, double 
     double qd[1];
     return lcg_bar_on_rollers_dynamics(t, x, p, qd, ud);
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* First-order right-hand side xdot = f(t, x), x = (q, u), 2 values; returns a status code. xdot must not alias x. */
 int lcg_bar_on_rollers_rhs(double t, const double *x, const double *p, double *xdot)
 {
     return lcg_bar_on_rollers_dynamics(t, x, p, xdot, xdot + 1);
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Total mechanical energy T + V. */
 double lcg_bar_on_rollers_energy(double t, const double *x, const double *p)
@@ -294,6 +309,8 @@ double lcg_bar_on_rollers_energy(double t, const double *x, const double *p)
     const double tmp1 = 2*m1;
     return g*(-2*m2*x_2 - tmp1*x_2)*sin(beta) + (3.0/2.0)*m2*tmp0 + tmp0*tmp1;
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Jacobian df/dx of the first-order right-hand side, row-major 2 x 2; returns a status code. */
 int lcg_bar_on_rollers_jacobian(double t, const double *x, const double *p, double *J)
@@ -329,6 +346,8 @@ int lcg_bar_on_rollers_jacobian(double t, const double *x, const double *p, doub
     }
     return LCG_OK;
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* M(q) (row-major 1 x 1) and G = dL/dq + Q, for symplectic Euler in p = M u. */
 void lcg_bar_on_rollers_momentum(double t, const double *x, const double *p, double *M, double *G)
@@ -348,6 +367,7 @@ void lcg_bar_on_rollers_momentum(double t, const double *x, const double *p, dou
     /* G = dL/dq + Q */
     G[0] = -2*delta*g*(m1 + m2)*cos(beta)*((double)((x_d > 0) - (x_d < 0)))/r - g*(-2*m1 - 2*m2)*sin(beta);
 }
+#endif
 
 /* ------------------------------------------------------------------------------------------
  * Integrators: 3 fixed-step schemes, a generic explicit Runge-Kutta stepper
@@ -380,6 +400,7 @@ static int lcg_bar_on_rollers_finite(const double *x)
     }
     return 1;
 }
+#if LCG_BUILD_PART != 2
 
 /* classical Runge-Kutta (order 4): one step of x at t, its 4 stage(s) unrolled from the
  * coefficient arrays above; work holds 4 stage derivatives and a stage state. The
@@ -407,6 +428,8 @@ static int lcg_bar_on_rollers_rk4_step(double t, double *x, const double *parame
     for (m = 0; m < 2; ++m) x[m] += h * (lcg_bar_on_rollers_rk4_b[0] * k[0 + m] + lcg_bar_on_rollers_rk4_b[1] * k[2 + m] + lcg_bar_on_rollers_rk4_b[2] * k[4 + m] + lcg_bar_on_rollers_rk4_b[3] * k[6 + m]);
     return LCG_OK;
 }
+#endif /* LCG_BUILD_PART != 2 */
+#if LCG_BUILD_PART != 1
 
 /* Solve the dense system E d = r (size dim) in place by Gaussian elimination with partial
  * pivoting; E and r are overwritten, d is returned in r. Returns 0 when E is singular. */
@@ -565,7 +588,9 @@ static int lcg_bar_on_rollers_symplectic_euler_step(double t, double *x, const d
     for (i = 0; i < 1; ++i) x[1 + i] = momentum[i];
     return LCG_OK;
 }
+#endif /* LCG_BUILD_PART != 1 */
 
+#if LCG_BUILD_PART != 2
 /* classical Runge-Kutta (order 4): advance (t, x) by one step h; work holds 10 values. */
 int lcg_bar_on_rollers_step_rk4(double *t, double *x, const double *p, double h, double *work)
 {
@@ -573,7 +598,9 @@ int lcg_bar_on_rollers_step_rk4(double *t, double *x, const double *p, double h,
     if (status == LCG_OK) *t += h;
     return status;
 }
+#endif
 
+#if LCG_BUILD_PART != 1
 /* symplectic (semi-implicit) Euler, momentum form (order 1): advance (t, x) by one step h; work holds 10 values. */
 int lcg_bar_on_rollers_step_symplectic_euler(double *t, double *x, const double *p, double h, double *work)
 {
@@ -581,7 +608,9 @@ int lcg_bar_on_rollers_step_symplectic_euler(double *t, double *x, const double 
     if (status == LCG_OK) *t += h;
     return status;
 }
+#endif
 
+#if LCG_BUILD_PART != 1
 /* implicit midpoint, Gauss s=1 (order 2): advance (t, x) by one step h; work holds 16 values. */
 int lcg_bar_on_rollers_step_implicit_midpoint(double *t, double *x, const double *p, double h, double *work)
 {
@@ -589,16 +618,19 @@ int lcg_bar_on_rollers_step_implicit_midpoint(double *t, double *x, const double
     if (status == LCG_OK) *t += h;
     return status;
 }
+#endif
+#if LCG_BUILD_PART != 2
 
 /* One step of the method numbered `method`, then the finiteness check of the new state. */
 static int lcg_bar_on_rollers_step_any(int method, double t, double *x, const double *p, double h,
                                  double *scratch, int project)
 {
+    double step_t = t;  /* implicit and symplectic steps go through their exported step function */
     int status;
     switch (method) {
     case 0: status = lcg_bar_on_rollers_rk4_step(t, x, p, h, scratch); break;
-    case 1: status = lcg_bar_on_rollers_symplectic_euler_step(t, x, p, h, scratch); break;
-    case 2: status = lcg_bar_on_rollers_irk_step(1, lcg_bar_on_rollers_implicit_midpoint_a, lcg_bar_on_rollers_implicit_midpoint_b, lcg_bar_on_rollers_implicit_midpoint_c, t, x, p, h, scratch); break;
+    case 1: status = lcg_bar_on_rollers_step_symplectic_euler(&step_t, x, p, h, scratch); break;
+    case 2: status = lcg_bar_on_rollers_step_implicit_midpoint(&step_t, x, p, h, scratch); break;
     default: return LCG_UNKNOWN_METHOD;
     }
     if (status == LCG_OK && !lcg_bar_on_rollers_finite(x)) status = LCG_NONFINITE_STATE;
@@ -716,3 +748,4 @@ void lcg_bar_on_rollers_sweep(int method, long n_members, const double *x0s, con
         }
     }
 }
+#endif /* LCG_BUILD_PART != 2 */

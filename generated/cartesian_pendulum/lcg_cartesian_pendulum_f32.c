@@ -9,6 +9,12 @@
 
 #include "lcg_cartesian_pendulum_f32.h"
 
+/* Left undefined, everything below is compiled. lagcodegen's own build compiles this file twice in
+ * parallel: LCG_BUILD_PART 1 (explicit integrators and the drivers) and 2 (everything else). */
+#ifndef LCG_BUILD_PART
+#define LCG_BUILD_PART 0
+#endif
+
 /* A pivot of M that is not positive means a singular mass matrix only at a finite state;
  * at an infinite or NaN state (a diverged step) it reports the non-finite state instead. */
 static int lcg_cartesian_pendulum_f32_pivot_failure(const float *x)
@@ -162,6 +168,7 @@ static int lcg_cartesian_pendulum_f32_dynamics(float t, const float *x, const fl
     float lam[1];
     return lcg_cartesian_pendulum_f32_dynamics_constrained(t, x, p, qd, ud, lam, 0);
 }
+#if LCG_BUILD_PART != 1
 
 /* Mass matrix M(q, t), row-major 2 x 2. */
 void lcg_cartesian_pendulum_f32_mass_matrix(float t, const float *x, const float *p, float *M)
@@ -177,6 +184,8 @@ void lcg_cartesian_pendulum_f32_mass_matrix(float t, const float *x, const float
     M[1] = M[2];  /* M[0][1] */
     M[3] = m_2;  /* M[1][1] */
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Forcing F(q, u, t), 2 values. */
 void lcg_cartesian_pendulum_f32_forcing(float t, const float *x, const float *p, float *F)
@@ -191,6 +200,8 @@ void lcg_cartesian_pendulum_f32_forcing(float t, const float *x, const float *p,
     F[0] = 0;
     F[1] = -g*m_2;
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Generalized accelerations ud solving M ud = F; returns a status code. */
 int lcg_cartesian_pendulum_f32_accel(float t, const float *x, const float *p, float *ud)
@@ -198,12 +209,16 @@ int lcg_cartesian_pendulum_f32_accel(float t, const float *x, const float *p, fl
     float qd[2];
     return lcg_cartesian_pendulum_f32_dynamics(t, x, p, qd, ud);
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* First-order right-hand side xdot = f(t, x), x = (q, u), 4 values; returns a status code. xdot must not alias x. */
 int lcg_cartesian_pendulum_f32_rhs(float t, const float *x, const float *p, float *xdot)
 {
     return lcg_cartesian_pendulum_f32_dynamics(t, x, p, xdot, xdot + 2);
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Total mechanical energy T + V. */
 float lcg_cartesian_pendulum_f32_energy(float t, const float *x, const float *p)
@@ -218,6 +233,8 @@ float lcg_cartesian_pendulum_f32_energy(float t, const float *x, const float *p)
     /* Intermediate terms (0), total ops 8 (before CSE 8) */
     return g*m_2*y + (1.0F/2.0F)*m_2*(x_d*x_d + y_d*y_d);
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Positions of 1 named points, 3 values each. */
 void lcg_cartesian_pendulum_f32_points(float t, const float *x, const float *p, float *out)
@@ -233,6 +250,8 @@ void lcg_cartesian_pendulum_f32_points(float t, const float *x, const float *p, 
     out[1] = y;  /* bob.y */
     out[2] = 0;  /* bob.z */
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Constraints phi (1), their Jacobian A = dphi/dq (row-major 1 x 2) and dphi/dt (1). */
 void lcg_cartesian_pendulum_f32_constraint_terms(float t, const float *x, const float *p, float *phi, float *A, float *phi_t)
@@ -249,6 +268,8 @@ void lcg_cartesian_pendulum_f32_constraint_terms(float t, const float *x, const 
     A[1] = 2*y;
     phi_t[0] = 0;
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Multipliers lam (1) and generalized constraint forces Q = A^T lam (2, or NULL): M ud = F - A^T lam. */
 int lcg_cartesian_pendulum_f32_multipliers(float t, const float *x, const float *p, float *lam, float *Q)
@@ -256,6 +277,8 @@ int lcg_cartesian_pendulum_f32_multipliers(float t, const float *x, const float 
     float qd[2], ud[2];
     return lcg_cartesian_pendulum_f32_dynamics_constrained(t, x, p, qd, ud, lam, Q);
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Constraint residuals at x: out[i] = phi_i (position level), out[1 + i] = (A u + dphi/dt)_i
  * (velocity level), 1 each. */
@@ -270,6 +293,7 @@ void lcg_cartesian_pendulum_f32_residuals(float t, const float *x, const float *
         out[1 + i] = acc;
     }
 }
+#endif
 
 /* Minimum-norm correction: solve (A A^T) y = b, then v -= A^T y. Returns 0 when A has lost rank. */
 static int lcg_cartesian_pendulum_f32_project_onto(const float *A, float *b, float *v)
@@ -293,6 +317,7 @@ static int lcg_cartesian_pendulum_f32_project_onto(const float *A, float *b, flo
     return 1;
 }
 
+#if LCG_BUILD_PART != 1
 /* Project x back onto the constraint manifold at time t: Gauss-Newton on phi(q, t) = 0 with
  * minimum-norm steps (at most 10, until max |phi| <= 1e-06F), then the
  * speeds onto A u + dphi/dt = 0. Returns a status code. */
@@ -319,6 +344,7 @@ int lcg_cartesian_pendulum_f32_project(float t, float *x, const float *p)
     if (!lcg_cartesian_pendulum_f32_project_onto(A, phi, x + 2)) return LCG_SINGULAR_CONSTRAINTS;
     return LCG_OK;
 }
+#endif
 
 /* ------------------------------------------------------------------------------------------
  * Integrators: 1 fixed-step schemes, a generic explicit Runge-Kutta stepper
@@ -344,6 +370,7 @@ static int lcg_cartesian_pendulum_f32_finite(const float *x)
     }
     return 1;
 }
+#if LCG_BUILD_PART != 2
 
 /* classical Runge-Kutta (order 4): one step of x at t, its 4 stage(s) unrolled from the
  * coefficient arrays above; work holds 4 stage derivatives and a stage state. The
@@ -371,7 +398,11 @@ static int lcg_cartesian_pendulum_f32_rk4_step(float t, float *x, const float *p
     for (m = 0; m < 4; ++m) x[m] += h * (lcg_cartesian_pendulum_f32_rk4_b[0] * k[0 + m] + lcg_cartesian_pendulum_f32_rk4_b[1] * k[4 + m] + lcg_cartesian_pendulum_f32_rk4_b[2] * k[8 + m] + lcg_cartesian_pendulum_f32_rk4_b[3] * k[12 + m]);
     return LCG_OK;
 }
+#endif /* LCG_BUILD_PART != 2 */
+#if LCG_BUILD_PART != 1
+#endif /* LCG_BUILD_PART != 1 */
 
+#if LCG_BUILD_PART != 2
 /* classical Runge-Kutta (order 4): advance (t, x) by one step h; work holds 20 values. */
 int lcg_cartesian_pendulum_f32_step_rk4(float *t, float *x, const float *p, float h, float *work)
 {
@@ -379,6 +410,8 @@ int lcg_cartesian_pendulum_f32_step_rk4(float *t, float *x, const float *p, floa
     if (status == LCG_OK) *t += h;
     return status;
 }
+#endif
+#if LCG_BUILD_PART != 2
 
 /* One step of the method numbered `method`, then the finiteness check of the new state. */
 static int lcg_cartesian_pendulum_f32_step_any(int method, float t, float *x, const float *p, float h,
@@ -513,3 +546,4 @@ void lcg_cartesian_pendulum_f32_sweep(int method, long n_members, const float *x
         }
     }
 }
+#endif /* LCG_BUILD_PART != 2 */

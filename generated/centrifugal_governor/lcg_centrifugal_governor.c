@@ -9,6 +9,12 @@
 
 #include "lcg_centrifugal_governor.h"
 
+/* Left undefined, everything below is compiled. lagcodegen's own build compiles this file twice in
+ * parallel: LCG_BUILD_PART 1 (explicit integrators and the drivers) and 2 (everything else). */
+#ifndef LCG_BUILD_PART
+#define LCG_BUILD_PART 0
+#endif
+
 /* ------------------------------------------------------------------------------------------
  * Inline sine and cosine (printed as lcg_sin and lcg_cos): faster than the libm calls
  * because sin and cos of one angle share one argument reduction once inlined, and the
@@ -243,6 +249,7 @@ static int lcg_centrifugal_governor_dynamics(double t, const double *x, const do
 {
     return lcg_centrifugal_governor_dynamics_hot(t, x, p, qd, ud);
 }
+#if LCG_BUILD_PART != 1
 
 /* Mass matrix M(q, t), row-major 1 x 1. */
 void lcg_centrifugal_governor_mass_matrix(double t, const double *x, const double *p, double *M)
@@ -259,6 +266,8 @@ void lcg_centrifugal_governor_mass_matrix(double t, const double *x, const doubl
     /* Mass matrix, lower triangle, mirrored */
     M[0] = P*tmp0*(cos(alpha)*cos(alpha)) + tmp0*(P + 2*Q_2)*(sin(alpha)*sin(alpha));  /* M[0][0] */
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Forcing F(q, u, t), 1 values. */
 void lcg_centrifugal_governor_forcing(double t, const double *x, const double *p, double *F)
@@ -284,6 +293,8 @@ void lcg_centrifugal_governor_forcing(double t, const double *x, const double *p
     /* Forcing */
     F[0] = -P*tmp1*tmp2*tmp3*tmp4*tmp5 + 2*P*tmp5*((omega*omega)*tmp6 + tmp7) - 4*Q_2*tmp5*tmp7 - l*tmp1*(P + Q_2);
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Generalized accelerations ud solving M ud = F; returns a status code. */
 int lcg_centrifugal_governor_accel(double t, const double *x, const double *p, double *ud)
@@ -291,12 +302,16 @@ int lcg_centrifugal_governor_accel(double t, const double *x, const double *p, d
     double qd[1];
     return lcg_centrifugal_governor_dynamics(t, x, p, qd, ud);
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* First-order right-hand side xdot = f(t, x), x = (q, u), 2 values; returns a status code. xdot must not alias x. */
 int lcg_centrifugal_governor_rhs(double t, const double *x, const double *p, double *xdot)
 {
     return lcg_centrifugal_governor_dynamics(t, x, p, xdot, xdot + 1);
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Total mechanical energy T + V. */
 double lcg_centrifugal_governor_energy(double t, const double *x, const double *p)
@@ -325,6 +340,8 @@ double lcg_centrifugal_governor_energy(double t, const double *x, const double *
     const double tmp12 = (1.0/2.0)*P*tmp2;
     return -P*tmp1 - Q_2*tmp1 + 2*Q_2*tmp2*tmp4 + 2*tmp12*(tmp10*tmp10 + tmp11*tmp11 + tmp4);
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Jacobian df/dx of the first-order right-hand side, row-major 2 x 2; returns a status code. */
 int lcg_centrifugal_governor_jacobian(double t, const double *x, const double *p, double *J)
@@ -383,6 +400,8 @@ int lcg_centrifugal_governor_jacobian(double t, const double *x, const double *p
     }
     return LCG_OK;
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* M(q) (row-major 1 x 1) and G = dL/dq + Q, for symplectic Euler in p = M u. */
 void lcg_centrifugal_governor_momentum(double t, const double *x, const double *p, double *M, double *G)
@@ -413,6 +432,7 @@ void lcg_centrifugal_governor_momentum(double t, const double *x, const double *
     /* G = dL/dq + Q */
     G[0] = -P*tmp0*tmp1*tmp2*tmp6*tmp7 + 2*P*tmp2*((omega*omega)*tmp8 + tmp9) - Q_2*tmp10*tmp9 - l*tmp6*(P + Q_2) + tmp7*(-P*tmp10*tmp8 + 4*tmp0*tmp1*tmp2*tmp4*tmp5);
 }
+#endif
 
 /* ------------------------------------------------------------------------------------------
  * Integrators: 3 fixed-step schemes, a generic explicit Runge-Kutta stepper
@@ -445,6 +465,7 @@ static int lcg_centrifugal_governor_finite(const double *x)
     }
     return 1;
 }
+#if LCG_BUILD_PART != 2
 
 /* classical Runge-Kutta (order 4): one step of x at t, its 4 stage(s) unrolled from the
  * coefficient arrays above; work holds 4 stage derivatives and a stage state. The
@@ -472,6 +493,8 @@ static int lcg_centrifugal_governor_rk4_step(double t, double *x, const double *
     for (m = 0; m < 2; ++m) x[m] += h * (lcg_centrifugal_governor_rk4_b[0] * k[0 + m] + lcg_centrifugal_governor_rk4_b[1] * k[2 + m] + lcg_centrifugal_governor_rk4_b[2] * k[4 + m] + lcg_centrifugal_governor_rk4_b[3] * k[6 + m]);
     return LCG_OK;
 }
+#endif /* LCG_BUILD_PART != 2 */
+#if LCG_BUILD_PART != 1
 
 /* Solve the dense system E d = r (size dim) in place by Gaussian elimination with partial
  * pivoting; E and r are overwritten, d is returned in r. Returns 0 when E is singular. */
@@ -630,7 +653,9 @@ static int lcg_centrifugal_governor_symplectic_euler_step(double t, double *x, c
     for (i = 0; i < 1; ++i) x[1 + i] = momentum[i];
     return LCG_OK;
 }
+#endif /* LCG_BUILD_PART != 1 */
 
+#if LCG_BUILD_PART != 2
 /* classical Runge-Kutta (order 4): advance (t, x) by one step h; work holds 10 values. */
 int lcg_centrifugal_governor_step_rk4(double *t, double *x, const double *p, double h, double *work)
 {
@@ -638,7 +663,9 @@ int lcg_centrifugal_governor_step_rk4(double *t, double *x, const double *p, dou
     if (status == LCG_OK) *t += h;
     return status;
 }
+#endif
 
+#if LCG_BUILD_PART != 1
 /* symplectic (semi-implicit) Euler, momentum form (order 1): advance (t, x) by one step h; work holds 10 values. */
 int lcg_centrifugal_governor_step_symplectic_euler(double *t, double *x, const double *p, double h, double *work)
 {
@@ -646,7 +673,9 @@ int lcg_centrifugal_governor_step_symplectic_euler(double *t, double *x, const d
     if (status == LCG_OK) *t += h;
     return status;
 }
+#endif
 
+#if LCG_BUILD_PART != 1
 /* implicit midpoint, Gauss s=1 (order 2): advance (t, x) by one step h; work holds 16 values. */
 int lcg_centrifugal_governor_step_implicit_midpoint(double *t, double *x, const double *p, double h, double *work)
 {
@@ -654,16 +683,19 @@ int lcg_centrifugal_governor_step_implicit_midpoint(double *t, double *x, const 
     if (status == LCG_OK) *t += h;
     return status;
 }
+#endif
+#if LCG_BUILD_PART != 2
 
 /* One step of the method numbered `method`, then the finiteness check of the new state. */
 static int lcg_centrifugal_governor_step_any(int method, double t, double *x, const double *p, double h,
                                  double *scratch, int project)
 {
+    double step_t = t;  /* implicit and symplectic steps go through their exported step function */
     int status;
     switch (method) {
     case 0: status = lcg_centrifugal_governor_rk4_step(t, x, p, h, scratch); break;
-    case 1: status = lcg_centrifugal_governor_symplectic_euler_step(t, x, p, h, scratch); break;
-    case 2: status = lcg_centrifugal_governor_irk_step(1, lcg_centrifugal_governor_implicit_midpoint_a, lcg_centrifugal_governor_implicit_midpoint_b, lcg_centrifugal_governor_implicit_midpoint_c, t, x, p, h, scratch); break;
+    case 1: status = lcg_centrifugal_governor_step_symplectic_euler(&step_t, x, p, h, scratch); break;
+    case 2: status = lcg_centrifugal_governor_step_implicit_midpoint(&step_t, x, p, h, scratch); break;
     default: return LCG_UNKNOWN_METHOD;
     }
     if (status == LCG_OK && !lcg_centrifugal_governor_finite(x)) status = LCG_NONFINITE_STATE;
@@ -781,3 +813,4 @@ void lcg_centrifugal_governor_sweep(int method, long n_members, const double *x0
         }
     }
 }
+#endif /* LCG_BUILD_PART != 2 */

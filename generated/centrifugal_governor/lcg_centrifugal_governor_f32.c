@@ -9,6 +9,12 @@
 
 #include "lcg_centrifugal_governor_f32.h"
 
+/* Left undefined, everything below is compiled. lagcodegen's own build compiles this file twice in
+ * parallel: LCG_BUILD_PART 1 (explicit integrators and the drivers) and 2 (everything else). */
+#ifndef LCG_BUILD_PART
+#define LCG_BUILD_PART 0
+#endif
+
 /* ------------------------------------------------------------------------------------------
  * Inline sine and cosine (printed as lcg_sinf and lcg_cosf): faster than the libm calls
  * because sin and cos of one angle share one argument reduction once inlined, and the
@@ -247,6 +253,7 @@ static int lcg_centrifugal_governor_f32_dynamics(float t, const float *x, const 
 {
     return lcg_centrifugal_governor_f32_dynamics_hot(t, x, p, qd, ud);
 }
+#if LCG_BUILD_PART != 1
 
 /* Mass matrix M(q, t), row-major 1 x 1. */
 void lcg_centrifugal_governor_f32_mass_matrix(float t, const float *x, const float *p, float *M)
@@ -263,6 +270,8 @@ void lcg_centrifugal_governor_f32_mass_matrix(float t, const float *x, const flo
     /* Mass matrix, lower triangle, mirrored */
     M[0] = P*tmp0*(cosf(alpha)*cosf(alpha)) + tmp0*(P + 2*Q_2)*(sinf(alpha)*sinf(alpha));  /* M[0][0] */
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Forcing F(q, u, t), 1 values. */
 void lcg_centrifugal_governor_f32_forcing(float t, const float *x, const float *p, float *F)
@@ -288,6 +297,8 @@ void lcg_centrifugal_governor_f32_forcing(float t, const float *x, const float *
     /* Forcing */
     F[0] = -P*tmp1*tmp2*tmp3*tmp4*tmp5 + 2*P*tmp5*((omega*omega)*tmp6 + tmp7) - 4*Q_2*tmp5*tmp7 - l*tmp1*(P + Q_2);
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Generalized accelerations ud solving M ud = F; returns a status code. */
 int lcg_centrifugal_governor_f32_accel(float t, const float *x, const float *p, float *ud)
@@ -295,12 +306,16 @@ int lcg_centrifugal_governor_f32_accel(float t, const float *x, const float *p, 
     float qd[1];
     return lcg_centrifugal_governor_f32_dynamics(t, x, p, qd, ud);
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* First-order right-hand side xdot = f(t, x), x = (q, u), 2 values; returns a status code. xdot must not alias x. */
 int lcg_centrifugal_governor_f32_rhs(float t, const float *x, const float *p, float *xdot)
 {
     return lcg_centrifugal_governor_f32_dynamics(t, x, p, xdot, xdot + 1);
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Total mechanical energy T + V. */
 float lcg_centrifugal_governor_f32_energy(float t, const float *x, const float *p)
@@ -329,6 +344,8 @@ float lcg_centrifugal_governor_f32_energy(float t, const float *x, const float *
     const float tmp12 = (1.0F/2.0F)*P*tmp2;
     return -P*tmp1 - Q_2*tmp1 + 2*Q_2*tmp2*tmp4 + 2*tmp12*(tmp10*tmp10 + tmp11*tmp11 + tmp4);
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Jacobian df/dx of the first-order right-hand side, row-major 2 x 2; returns a status code. */
 int lcg_centrifugal_governor_f32_jacobian(float t, const float *x, const float *p, float *J)
@@ -387,6 +404,8 @@ int lcg_centrifugal_governor_f32_jacobian(float t, const float *x, const float *
     }
     return LCG_OK;
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* M(q) (row-major 1 x 1) and G = dL/dq + Q, for symplectic Euler in p = M u. */
 void lcg_centrifugal_governor_f32_momentum(float t, const float *x, const float *p, float *M, float *G)
@@ -417,6 +436,7 @@ void lcg_centrifugal_governor_f32_momentum(float t, const float *x, const float 
     /* G = dL/dq + Q */
     G[0] = -P*tmp0*tmp1*tmp2*tmp6*tmp7 + 2*P*tmp2*((omega*omega)*tmp8 + tmp9) - Q_2*tmp10*tmp9 - l*tmp6*(P + Q_2) + tmp7*(-P*tmp10*tmp8 + 4*tmp0*tmp1*tmp2*tmp4*tmp5);
 }
+#endif
 
 /* ------------------------------------------------------------------------------------------
  * Integrators: 3 fixed-step schemes, a generic explicit Runge-Kutta stepper
@@ -449,6 +469,7 @@ static int lcg_centrifugal_governor_f32_finite(const float *x)
     }
     return 1;
 }
+#if LCG_BUILD_PART != 2
 
 /* classical Runge-Kutta (order 4): one step of x at t, its 4 stage(s) unrolled from the
  * coefficient arrays above; work holds 4 stage derivatives and a stage state. The
@@ -476,6 +497,8 @@ static int lcg_centrifugal_governor_f32_rk4_step(float t, float *x, const float 
     for (m = 0; m < 2; ++m) x[m] += h * (lcg_centrifugal_governor_f32_rk4_b[0] * k[0 + m] + lcg_centrifugal_governor_f32_rk4_b[1] * k[2 + m] + lcg_centrifugal_governor_f32_rk4_b[2] * k[4 + m] + lcg_centrifugal_governor_f32_rk4_b[3] * k[6 + m]);
     return LCG_OK;
 }
+#endif /* LCG_BUILD_PART != 2 */
+#if LCG_BUILD_PART != 1
 
 /* Solve the dense system E d = r (size dim) in place by Gaussian elimination with partial
  * pivoting; E and r are overwritten, d is returned in r. Returns 0 when E is singular. */
@@ -634,7 +657,9 @@ static int lcg_centrifugal_governor_f32_symplectic_euler_step(float t, float *x,
     for (i = 0; i < 1; ++i) x[1 + i] = momentum[i];
     return LCG_OK;
 }
+#endif /* LCG_BUILD_PART != 1 */
 
+#if LCG_BUILD_PART != 2
 /* classical Runge-Kutta (order 4): advance (t, x) by one step h; work holds 10 values. */
 int lcg_centrifugal_governor_f32_step_rk4(float *t, float *x, const float *p, float h, float *work)
 {
@@ -642,7 +667,9 @@ int lcg_centrifugal_governor_f32_step_rk4(float *t, float *x, const float *p, fl
     if (status == LCG_OK) *t += h;
     return status;
 }
+#endif
 
+#if LCG_BUILD_PART != 1
 /* symplectic (semi-implicit) Euler, momentum form (order 1): advance (t, x) by one step h; work holds 10 values. */
 int lcg_centrifugal_governor_f32_step_symplectic_euler(float *t, float *x, const float *p, float h, float *work)
 {
@@ -650,7 +677,9 @@ int lcg_centrifugal_governor_f32_step_symplectic_euler(float *t, float *x, const
     if (status == LCG_OK) *t += h;
     return status;
 }
+#endif
 
+#if LCG_BUILD_PART != 1
 /* implicit midpoint, Gauss s=1 (order 2): advance (t, x) by one step h; work holds 16 values. */
 int lcg_centrifugal_governor_f32_step_implicit_midpoint(float *t, float *x, const float *p, float h, float *work)
 {
@@ -658,16 +687,19 @@ int lcg_centrifugal_governor_f32_step_implicit_midpoint(float *t, float *x, cons
     if (status == LCG_OK) *t += h;
     return status;
 }
+#endif
+#if LCG_BUILD_PART != 2
 
 /* One step of the method numbered `method`, then the finiteness check of the new state. */
 static int lcg_centrifugal_governor_f32_step_any(int method, float t, float *x, const float *p, float h,
                                  float *scratch, int project)
 {
+    float step_t = t;  /* implicit and symplectic steps go through their exported step function */
     int status;
     switch (method) {
     case 0: status = lcg_centrifugal_governor_f32_rk4_step(t, x, p, h, scratch); break;
-    case 1: status = lcg_centrifugal_governor_f32_symplectic_euler_step(t, x, p, h, scratch); break;
-    case 2: status = lcg_centrifugal_governor_f32_irk_step(1, lcg_centrifugal_governor_f32_implicit_midpoint_a, lcg_centrifugal_governor_f32_implicit_midpoint_b, lcg_centrifugal_governor_f32_implicit_midpoint_c, t, x, p, h, scratch); break;
+    case 1: status = lcg_centrifugal_governor_f32_step_symplectic_euler(&step_t, x, p, h, scratch); break;
+    case 2: status = lcg_centrifugal_governor_f32_step_implicit_midpoint(&step_t, x, p, h, scratch); break;
     default: return LCG_UNKNOWN_METHOD;
     }
     if (status == LCG_OK && !lcg_centrifugal_governor_f32_finite(x)) status = LCG_NONFINITE_STATE;
@@ -785,3 +817,4 @@ void lcg_centrifugal_governor_f32_sweep(int method, long n_members, const float 
         }
     }
 }
+#endif /* LCG_BUILD_PART != 2 */

@@ -9,6 +9,12 @@
 
 #include "lcg_disk_spring_rod.h"
 
+/* Left undefined, everything below is compiled. lagcodegen's own build compiles this file twice in
+ * parallel: LCG_BUILD_PART 1 (explicit integrators and the drivers) and 2 (everything else). */
+#ifndef LCG_BUILD_PART
+#define LCG_BUILD_PART 0
+#endif
+
 /* ------------------------------------------------------------------------------------------
  * Inline sine and cosine (printed as lcg_sin and lcg_cos): faster than the libm calls
  * because sin and cos of one angle share one argument reduction once inlined, and the
@@ -249,6 +255,7 @@ static int lcg_disk_spring_rod_dynamics(double t, const double *x, const double 
 {
     return lcg_disk_spring_rod_dynamics_hot(t, x, p, qd, ud);
 }
+#if LCG_BUILD_PART != 1
 
 /* Mass matrix M(q, t), row-major 2 x 2. */
 void lcg_disk_spring_rod_mass_matrix(double t, const double *x, const double *p, double *M)
@@ -266,6 +273,8 @@ void lcg_disk_spring_rod_mass_matrix(double t, const double *x, const double *p,
     M[1] = M[2];  /* M[0][1] */
     M[3] = (1.0/3.0)*(l*l)*m_2;  /* M[1][1] */
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Forcing F(q, u, t), 2 values. */
 void lcg_disk_spring_rod_forcing(double t, const double *x, const double *p, double *F)
@@ -285,6 +294,8 @@ void lcg_disk_spring_rod_forcing(double t, const double *x, const double *p, dou
     F[0] = -k_2*x_2 + (1.0/2.0)*l*m_2*(phi_d*phi_d)*tmp0;
     F[1] = -(1.0/2.0)*g*l*m_2*tmp0;
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Generalized accelerations ud solving M ud = F; returns a status code. */
 int lcg_disk_spring_rod_accel(double t, const double *x, const double *p, double *ud)
@@ -292,12 +303,16 @@ int lcg_disk_spring_rod_accel(double t, const double *x, const double *p, double
     double qd[2];
     return lcg_disk_spring_rod_dynamics(t, x, p, qd, ud);
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* First-order right-hand side xdot = f(t, x), x = (q, u), 4 values; returns a status code. xdot must not alias x. */
 int lcg_disk_spring_rod_rhs(double t, const double *x, const double *p, double *xdot)
 {
     return lcg_disk_spring_rod_dynamics(t, x, p, xdot, xdot + 2);
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Total mechanical energy T + V. */
 double lcg_disk_spring_rod_energy(double t, const double *x, const double *p)
@@ -319,6 +334,8 @@ double lcg_disk_spring_rod_energy(double t, const double *x, const double *p)
     const double tmp2 = (l*l)*(phi_d*phi_d);
     return (3.0/4.0)*M_2*(x_d*x_d) - g*tmp0*tmp1 + (1.0/2.0)*k_2*(x_2*x_2) + (1.0/24.0)*m_2*tmp2 + tmp0*((1.0/4.0)*tmp2*(sin(phi_2)*sin(phi_2)) + ((1.0/2.0)*phi_d*tmp1 + x_d)*((1.0/2.0)*phi_d*tmp1 + x_d));
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Jacobian df/dx of the first-order right-hand side, row-major 4 x 4; returns a status code. */
 int lcg_disk_spring_rod_jacobian(double t, const double *x, const double *p, double *J)
@@ -389,6 +406,8 @@ int lcg_disk_spring_rod_jacobian(double t, const double *x, const double *p, dou
     }
     return LCG_OK;
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* M(q) (row-major 2 x 2) and G = dL/dq + Q, for symplectic Euler in p = M u. */
 void lcg_disk_spring_rod_momentum(double t, const double *x, const double *p, double *M, double *G)
@@ -416,6 +435,7 @@ void lcg_disk_spring_rod_momentum(double t, const double *x, const double *p, do
     G[0] = -k_2*x_2;
     G[1] = -g*tmp1 - phi_d*tmp1*x_d;
 }
+#endif
 
 /* ------------------------------------------------------------------------------------------
  * Integrators: 3 fixed-step schemes, a generic explicit Runge-Kutta stepper
@@ -448,6 +468,7 @@ static int lcg_disk_spring_rod_finite(const double *x)
     }
     return 1;
 }
+#if LCG_BUILD_PART != 2
 
 /* classical Runge-Kutta (order 4): one step of x at t, its 4 stage(s) unrolled from the
  * coefficient arrays above; work holds 4 stage derivatives and a stage state. The
@@ -475,6 +496,8 @@ static int lcg_disk_spring_rod_rk4_step(double t, double *x, const double *param
     for (m = 0; m < 4; ++m) x[m] += h * (lcg_disk_spring_rod_rk4_b[0] * k[0 + m] + lcg_disk_spring_rod_rk4_b[1] * k[4 + m] + lcg_disk_spring_rod_rk4_b[2] * k[8 + m] + lcg_disk_spring_rod_rk4_b[3] * k[12 + m]);
     return LCG_OK;
 }
+#endif /* LCG_BUILD_PART != 2 */
+#if LCG_BUILD_PART != 1
 
 /* Solve the dense system E d = r (size dim) in place by Gaussian elimination with partial
  * pivoting; E and r are overwritten, d is returned in r. Returns 0 when E is singular. */
@@ -633,7 +656,9 @@ static int lcg_disk_spring_rod_symplectic_euler_step(double t, double *x, const 
     for (i = 0; i < 2; ++i) x[2 + i] = momentum[i];
     return LCG_OK;
 }
+#endif /* LCG_BUILD_PART != 1 */
 
+#if LCG_BUILD_PART != 2
 /* classical Runge-Kutta (order 4): advance (t, x) by one step h; work holds 20 values. */
 int lcg_disk_spring_rod_step_rk4(double *t, double *x, const double *p, double h, double *work)
 {
@@ -641,7 +666,9 @@ int lcg_disk_spring_rod_step_rk4(double *t, double *x, const double *p, double h
     if (status == LCG_OK) *t += h;
     return status;
 }
+#endif
 
+#if LCG_BUILD_PART != 1
 /* symplectic (semi-implicit) Euler, momentum form (order 1): advance (t, x) by one step h; work holds 26 values. */
 int lcg_disk_spring_rod_step_symplectic_euler(double *t, double *x, const double *p, double h, double *work)
 {
@@ -649,7 +676,9 @@ int lcg_disk_spring_rod_step_symplectic_euler(double *t, double *x, const double
     if (status == LCG_OK) *t += h;
     return status;
 }
+#endif
 
+#if LCG_BUILD_PART != 1
 /* implicit midpoint, Gauss s=1 (order 2): advance (t, x) by one step h; work holds 48 values. */
 int lcg_disk_spring_rod_step_implicit_midpoint(double *t, double *x, const double *p, double h, double *work)
 {
@@ -657,16 +686,19 @@ int lcg_disk_spring_rod_step_implicit_midpoint(double *t, double *x, const doubl
     if (status == LCG_OK) *t += h;
     return status;
 }
+#endif
+#if LCG_BUILD_PART != 2
 
 /* One step of the method numbered `method`, then the finiteness check of the new state. */
 static int lcg_disk_spring_rod_step_any(int method, double t, double *x, const double *p, double h,
                                  double *scratch, int project)
 {
+    double step_t = t;  /* implicit and symplectic steps go through their exported step function */
     int status;
     switch (method) {
     case 0: status = lcg_disk_spring_rod_rk4_step(t, x, p, h, scratch); break;
-    case 1: status = lcg_disk_spring_rod_symplectic_euler_step(t, x, p, h, scratch); break;
-    case 2: status = lcg_disk_spring_rod_irk_step(1, lcg_disk_spring_rod_implicit_midpoint_a, lcg_disk_spring_rod_implicit_midpoint_b, lcg_disk_spring_rod_implicit_midpoint_c, t, x, p, h, scratch); break;
+    case 1: status = lcg_disk_spring_rod_step_symplectic_euler(&step_t, x, p, h, scratch); break;
+    case 2: status = lcg_disk_spring_rod_step_implicit_midpoint(&step_t, x, p, h, scratch); break;
     default: return LCG_UNKNOWN_METHOD;
     }
     if (status == LCG_OK && !lcg_disk_spring_rod_finite(x)) status = LCG_NONFINITE_STATE;
@@ -784,3 +816,4 @@ void lcg_disk_spring_rod_sweep(int method, long n_members, const double *x0s, co
         }
     }
 }
+#endif /* LCG_BUILD_PART != 2 */

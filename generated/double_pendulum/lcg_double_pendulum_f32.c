@@ -9,6 +9,12 @@
 
 #include "lcg_double_pendulum_f32.h"
 
+/* Left undefined, everything below is compiled. lagcodegen's own build compiles this file twice in
+ * parallel: LCG_BUILD_PART 1 (explicit integrators and the drivers) and 2 (everything else). */
+#ifndef LCG_BUILD_PART
+#define LCG_BUILD_PART 0
+#endif
+
 /* ------------------------------------------------------------------------------------------
  * Inline sine and cosine (printed as lcg_sinf and lcg_cosf): faster than the libm calls
  * because sin and cos of one angle share one argument reduction once inlined, and the
@@ -267,6 +273,7 @@ static int lcg_double_pendulum_f32_dynamics(float t, const float *x, const float
 {
     return lcg_double_pendulum_f32_dynamics_hot(t, x, p, qd, ud);
 }
+#if LCG_BUILD_PART != 1
 
 /* Mass matrix M(q, t), row-major 2 x 2. */
 void lcg_double_pendulum_f32_mass_matrix(float t, const float *x, const float *p, float *M)
@@ -287,6 +294,8 @@ void lcg_double_pendulum_f32_mass_matrix(float t, const float *x, const float *p
     M[1] = M[2];  /* M[0][1] */
     M[3] = (l2*l2)*m2;  /* M[1][1] */
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Forcing F(q, u, t), 2 values. */
 void lcg_double_pendulum_f32_forcing(float t, const float *x, const float *p, float *F)
@@ -319,6 +328,8 @@ void lcg_double_pendulum_f32_forcing(float t, const float *x, const float *p, fl
     F[0] = -g*tmp1*(m1 + m2) - l1*tmp2*(-m1*tmp8 + m2*tmp10) - tmp1*(m1*tmp4 + tmp7);
     F[1] = -g*m2*tmp11 - l2*m2*tmp10*tmp5 - tmp11*tmp7;
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Generalized accelerations ud solving M ud = F; returns a status code. */
 int lcg_double_pendulum_f32_accel(float t, const float *x, const float *p, float *ud)
@@ -326,12 +337,16 @@ int lcg_double_pendulum_f32_accel(float t, const float *x, const float *p, float
     float qd[2];
     return lcg_double_pendulum_f32_dynamics(t, x, p, qd, ud);
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* First-order right-hand side xdot = f(t, x), x = (q, u), 4 values; returns a status code. xdot must not alias x. */
 int lcg_double_pendulum_f32_rhs(float t, const float *x, const float *p, float *xdot)
 {
     return lcg_double_pendulum_f32_dynamics(t, x, p, xdot, xdot + 2);
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Total mechanical energy T + V. */
 float lcg_double_pendulum_f32_energy(float t, const float *x, const float *p)
@@ -356,6 +371,8 @@ float lcg_double_pendulum_f32_energy(float t, const float *x, const float *p)
     const float tmp5 = l2*q2_d;
     return g*l1*tmp1*(-m1 - m2) - g*l2*m2*tmp0 + (1.0F/2.0F)*m1*((tmp1*tmp1)*tmp3 + (tmp2*tmp2)*tmp3) + (1.0F/2.0F)*m2*((tmp0*tmp5 + tmp1*tmp4)*(tmp0*tmp5 + tmp1*tmp4) + (tmp2*tmp4 + tmp5*sinf(q2))*(tmp2*tmp4 + tmp5*sinf(q2)));
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Positions of 2 named points, 3 values each. */
 void lcg_double_pendulum_f32_points(float t, const float *x, const float *p, float *out)
@@ -377,6 +394,8 @@ void lcg_double_pendulum_f32_points(float t, const float *x, const float *p, flo
     out[4] = -l2*cosf(q2) - tmp1;  /* bob2.y */
     out[5] = 0;  /* bob2.z */
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Jacobian df/dx of the first-order right-hand side, row-major 4 x 4; returns a status code. */
 int lcg_double_pendulum_f32_jacobian(float t, const float *x, const float *p, float *J)
@@ -476,6 +495,8 @@ int lcg_double_pendulum_f32_jacobian(float t, const float *x, const float *p, fl
     }
     return LCG_OK;
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* M(q) (row-major 2 x 2) and G = dL/dq + Q, for symplectic Euler in p = M u. */
 void lcg_double_pendulum_f32_momentum(float t, const float *x, const float *p, float *M, float *G)
@@ -520,6 +541,7 @@ void lcg_double_pendulum_f32_momentum(float t, const float *x, const float *p, f
     G[0] = -g*tmp0*tmp2 + m2*q1_d*q2_d*tmp10 + m2*tmp11*tmp9 - tmp2*(m1*tmp14 + tmp16) - tmp6*(-m1*tmp17 + m2*tmp18);
     G[1] = -g*m2*tmp4 + m2*q1_d*q2_d*tmp9 + m2*tmp10*tmp12 - m2*tmp18*tmp8 - tmp16*tmp4;
 }
+#endif
 
 /* ------------------------------------------------------------------------------------------
  * Integrators: 3 fixed-step schemes, a generic explicit Runge-Kutta stepper
@@ -552,6 +574,7 @@ static int lcg_double_pendulum_f32_finite(const float *x)
     }
     return 1;
 }
+#if LCG_BUILD_PART != 2
 
 /* classical Runge-Kutta (order 4): one step of x at t, its 4 stage(s) unrolled from the
  * coefficient arrays above; work holds 4 stage derivatives and a stage state. The
@@ -579,6 +602,8 @@ static int lcg_double_pendulum_f32_rk4_step(float t, float *x, const float *para
     for (m = 0; m < 4; ++m) x[m] += h * (lcg_double_pendulum_f32_rk4_b[0] * k[0 + m] + lcg_double_pendulum_f32_rk4_b[1] * k[4 + m] + lcg_double_pendulum_f32_rk4_b[2] * k[8 + m] + lcg_double_pendulum_f32_rk4_b[3] * k[12 + m]);
     return LCG_OK;
 }
+#endif /* LCG_BUILD_PART != 2 */
+#if LCG_BUILD_PART != 1
 
 /* Solve the dense system E d = r (size dim) in place by Gaussian elimination with partial
  * pivoting; E and r are overwritten, d is returned in r. Returns 0 when E is singular. */
@@ -737,7 +762,9 @@ static int lcg_double_pendulum_f32_symplectic_euler_step(float t, float *x, cons
     for (i = 0; i < 2; ++i) x[2 + i] = momentum[i];
     return LCG_OK;
 }
+#endif /* LCG_BUILD_PART != 1 */
 
+#if LCG_BUILD_PART != 2
 /* classical Runge-Kutta (order 4): advance (t, x) by one step h; work holds 20 values. */
 int lcg_double_pendulum_f32_step_rk4(float *t, float *x, const float *p, float h, float *work)
 {
@@ -745,7 +772,9 @@ int lcg_double_pendulum_f32_step_rk4(float *t, float *x, const float *p, float h
     if (status == LCG_OK) *t += h;
     return status;
 }
+#endif
 
+#if LCG_BUILD_PART != 1
 /* symplectic (semi-implicit) Euler, momentum form (order 1): advance (t, x) by one step h; work holds 26 values. */
 int lcg_double_pendulum_f32_step_symplectic_euler(float *t, float *x, const float *p, float h, float *work)
 {
@@ -753,7 +782,9 @@ int lcg_double_pendulum_f32_step_symplectic_euler(float *t, float *x, const floa
     if (status == LCG_OK) *t += h;
     return status;
 }
+#endif
 
+#if LCG_BUILD_PART != 1
 /* implicit midpoint, Gauss s=1 (order 2): advance (t, x) by one step h; work holds 48 values. */
 int lcg_double_pendulum_f32_step_implicit_midpoint(float *t, float *x, const float *p, float h, float *work)
 {
@@ -761,16 +792,19 @@ int lcg_double_pendulum_f32_step_implicit_midpoint(float *t, float *x, const flo
     if (status == LCG_OK) *t += h;
     return status;
 }
+#endif
+#if LCG_BUILD_PART != 2
 
 /* One step of the method numbered `method`, then the finiteness check of the new state. */
 static int lcg_double_pendulum_f32_step_any(int method, float t, float *x, const float *p, float h,
                                  float *scratch, int project)
 {
+    float step_t = t;  /* implicit and symplectic steps go through their exported step function */
     int status;
     switch (method) {
     case 0: status = lcg_double_pendulum_f32_rk4_step(t, x, p, h, scratch); break;
-    case 1: status = lcg_double_pendulum_f32_symplectic_euler_step(t, x, p, h, scratch); break;
-    case 2: status = lcg_double_pendulum_f32_irk_step(1, lcg_double_pendulum_f32_implicit_midpoint_a, lcg_double_pendulum_f32_implicit_midpoint_b, lcg_double_pendulum_f32_implicit_midpoint_c, t, x, p, h, scratch); break;
+    case 1: status = lcg_double_pendulum_f32_step_symplectic_euler(&step_t, x, p, h, scratch); break;
+    case 2: status = lcg_double_pendulum_f32_step_implicit_midpoint(&step_t, x, p, h, scratch); break;
     default: return LCG_UNKNOWN_METHOD;
     }
     if (status == LCG_OK && !lcg_double_pendulum_f32_finite(x)) status = LCG_NONFINITE_STATE;
@@ -888,3 +922,4 @@ void lcg_double_pendulum_f32_sweep(int method, long n_members, const float *x0s,
         }
     }
 }
+#endif /* LCG_BUILD_PART != 2 */

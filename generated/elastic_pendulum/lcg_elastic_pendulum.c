@@ -9,6 +9,12 @@
 
 #include "lcg_elastic_pendulum.h"
 
+/* Left undefined, everything below is compiled. lagcodegen's own build compiles this file twice in
+ * parallel: LCG_BUILD_PART 1 (explicit integrators and the drivers) and 2 (everything else). */
+#ifndef LCG_BUILD_PART
+#define LCG_BUILD_PART 0
+#endif
+
 /* ------------------------------------------------------------------------------------------
  * Inline sine and cosine (printed as lcg_sin and lcg_cos): faster than the libm calls
  * because sin and cos of one angle share one argument reduction once inlined, and the
@@ -245,6 +251,7 @@ static int lcg_elastic_pendulum_dynamics(double t, const double *x, const double
 {
     return lcg_elastic_pendulum_dynamics_hot(t, x, p, qd, ud);
 }
+#if LCG_BUILD_PART != 1
 
 /* Mass matrix M(q, t), row-major 2 x 2. */
 void lcg_elastic_pendulum_mass_matrix(double t, const double *x, const double *p, double *M)
@@ -260,6 +267,8 @@ void lcg_elastic_pendulum_mass_matrix(double t, const double *x, const double *p
     M[1] = M[2];  /* M[0][1] */
     M[3] = m_2*(r*r);  /* M[1][1] */
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Forcing F(q, u, t), 2 values. */
 void lcg_elastic_pendulum_forcing(double t, const double *x, const double *p, double *F)
@@ -280,6 +289,8 @@ void lcg_elastic_pendulum_forcing(double t, const double *x, const double *p, do
     F[0] = g*m_2*cos(phi_2) - (1.0/2.0)*k_2*(-2*l0 + 2*r) + (phi_d*phi_d)*tmp0;
     F[1] = -g*tmp0*sin(phi_2) - 2*m_2*phi_d*r*r_d;
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Generalized accelerations ud solving M ud = F; returns a status code. */
 int lcg_elastic_pendulum_accel(double t, const double *x, const double *p, double *ud)
@@ -287,12 +298,16 @@ int lcg_elastic_pendulum_accel(double t, const double *x, const double *p, doubl
     double qd[2];
     return lcg_elastic_pendulum_dynamics(t, x, p, qd, ud);
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* First-order right-hand side xdot = f(t, x), x = (q, u), 4 values; returns a status code. xdot must not alias x. */
 int lcg_elastic_pendulum_rhs(double t, const double *x, const double *p, double *xdot)
 {
     return lcg_elastic_pendulum_dynamics(t, x, p, xdot, xdot + 2);
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Total mechanical energy T + V. */
 double lcg_elastic_pendulum_energy(double t, const double *x, const double *p)
@@ -310,6 +325,8 @@ double lcg_elastic_pendulum_energy(double t, const double *x, const double *p)
     /* Intermediate terms (0), total ops 17 (before CSE 17) */
     return -g*m_2*r*cos(phi_2) + (1.0/2.0)*k_2*((-l0 + r)*(-l0 + r)) + (1.0/2.0)*m_2*((phi_d*phi_d)*(r*r) + r_d*r_d);
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Positions of 1 named points, 3 values each. */
 void lcg_elastic_pendulum_points(double t, const double *x, const double *p, double *out)
@@ -325,6 +342,8 @@ void lcg_elastic_pendulum_points(double t, const double *x, const double *p, dou
     out[1] = -r*cos(phi_2);  /* ball.y */
     out[2] = 0;  /* ball.z */
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Jacobian df/dx of the first-order right-hand side, row-major 4 x 4; returns a status code. */
 int lcg_elastic_pendulum_jacobian(double t, const double *x, const double *p, double *J)
@@ -390,6 +409,8 @@ int lcg_elastic_pendulum_jacobian(double t, const double *x, const double *p, do
     }
     return LCG_OK;
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* M(q) (row-major 2 x 2) and G = dL/dq + Q, for symplectic Euler in p = M u. */
 void lcg_elastic_pendulum_momentum(double t, const double *x, const double *p, double *M, double *G)
@@ -414,6 +435,7 @@ void lcg_elastic_pendulum_momentum(double t, const double *x, const double *p, d
     G[0] = g*m_2*cos(phi_2) - (1.0/2.0)*k_2*(-2*l0 + 2*r) + (phi_d*phi_d)*tmp0;
     G[1] = -g*tmp0*sin(phi_2);
 }
+#endif
 
 /* ------------------------------------------------------------------------------------------
  * Integrators: 3 fixed-step schemes, a generic explicit Runge-Kutta stepper
@@ -446,6 +468,7 @@ static int lcg_elastic_pendulum_finite(const double *x)
     }
     return 1;
 }
+#if LCG_BUILD_PART != 2
 
 /* classical Runge-Kutta (order 4): one step of x at t, its 4 stage(s) unrolled from the
  * coefficient arrays above; work holds 4 stage derivatives and a stage state. The
@@ -473,6 +496,8 @@ static int lcg_elastic_pendulum_rk4_step(double t, double *x, const double *para
     for (m = 0; m < 4; ++m) x[m] += h * (lcg_elastic_pendulum_rk4_b[0] * k[0 + m] + lcg_elastic_pendulum_rk4_b[1] * k[4 + m] + lcg_elastic_pendulum_rk4_b[2] * k[8 + m] + lcg_elastic_pendulum_rk4_b[3] * k[12 + m]);
     return LCG_OK;
 }
+#endif /* LCG_BUILD_PART != 2 */
+#if LCG_BUILD_PART != 1
 
 /* Solve the dense system E d = r (size dim) in place by Gaussian elimination with partial
  * pivoting; E and r are overwritten, d is returned in r. Returns 0 when E is singular. */
@@ -631,7 +656,9 @@ static int lcg_elastic_pendulum_symplectic_euler_step(double t, double *x, const
     for (i = 0; i < 2; ++i) x[2 + i] = momentum[i];
     return LCG_OK;
 }
+#endif /* LCG_BUILD_PART != 1 */
 
+#if LCG_BUILD_PART != 2
 /* classical Runge-Kutta (order 4): advance (t, x) by one step h; work holds 20 values. */
 int lcg_elastic_pendulum_step_rk4(double *t, double *x, const double *p, double h, double *work)
 {
@@ -639,7 +666,9 @@ int lcg_elastic_pendulum_step_rk4(double *t, double *x, const double *p, double 
     if (status == LCG_OK) *t += h;
     return status;
 }
+#endif
 
+#if LCG_BUILD_PART != 1
 /* symplectic (semi-implicit) Euler, momentum form (order 1): advance (t, x) by one step h; work holds 26 values. */
 int lcg_elastic_pendulum_step_symplectic_euler(double *t, double *x, const double *p, double h, double *work)
 {
@@ -647,7 +676,9 @@ int lcg_elastic_pendulum_step_symplectic_euler(double *t, double *x, const doubl
     if (status == LCG_OK) *t += h;
     return status;
 }
+#endif
 
+#if LCG_BUILD_PART != 1
 /* implicit midpoint, Gauss s=1 (order 2): advance (t, x) by one step h; work holds 48 values. */
 int lcg_elastic_pendulum_step_implicit_midpoint(double *t, double *x, const double *p, double h, double *work)
 {
@@ -655,16 +686,19 @@ int lcg_elastic_pendulum_step_implicit_midpoint(double *t, double *x, const doub
     if (status == LCG_OK) *t += h;
     return status;
 }
+#endif
+#if LCG_BUILD_PART != 2
 
 /* One step of the method numbered `method`, then the finiteness check of the new state. */
 static int lcg_elastic_pendulum_step_any(int method, double t, double *x, const double *p, double h,
                                  double *scratch, int project)
 {
+    double step_t = t;  /* implicit and symplectic steps go through their exported step function */
     int status;
     switch (method) {
     case 0: status = lcg_elastic_pendulum_rk4_step(t, x, p, h, scratch); break;
-    case 1: status = lcg_elastic_pendulum_symplectic_euler_step(t, x, p, h, scratch); break;
-    case 2: status = lcg_elastic_pendulum_irk_step(1, lcg_elastic_pendulum_implicit_midpoint_a, lcg_elastic_pendulum_implicit_midpoint_b, lcg_elastic_pendulum_implicit_midpoint_c, t, x, p, h, scratch); break;
+    case 1: status = lcg_elastic_pendulum_step_symplectic_euler(&step_t, x, p, h, scratch); break;
+    case 2: status = lcg_elastic_pendulum_step_implicit_midpoint(&step_t, x, p, h, scratch); break;
     default: return LCG_UNKNOWN_METHOD;
     }
     if (status == LCG_OK && !lcg_elastic_pendulum_finite(x)) status = LCG_NONFINITE_STATE;
@@ -782,3 +816,4 @@ void lcg_elastic_pendulum_sweep(int method, long n_members, const double *x0s, c
         }
     }
 }
+#endif /* LCG_BUILD_PART != 2 */

@@ -9,6 +9,12 @@
 
 #include "lcg_elastic_pendulum_f32.h"
 
+/* Left undefined, everything below is compiled. lagcodegen's own build compiles this file twice in
+ * parallel: LCG_BUILD_PART 1 (explicit integrators and the drivers) and 2 (everything else). */
+#ifndef LCG_BUILD_PART
+#define LCG_BUILD_PART 0
+#endif
+
 /* ------------------------------------------------------------------------------------------
  * Inline sine and cosine (printed as lcg_sinf and lcg_cosf): faster than the libm calls
  * because sin and cos of one angle share one argument reduction once inlined, and the
@@ -249,6 +255,7 @@ static int lcg_elastic_pendulum_f32_dynamics(float t, const float *x, const floa
 {
     return lcg_elastic_pendulum_f32_dynamics_hot(t, x, p, qd, ud);
 }
+#if LCG_BUILD_PART != 1
 
 /* Mass matrix M(q, t), row-major 2 x 2. */
 void lcg_elastic_pendulum_f32_mass_matrix(float t, const float *x, const float *p, float *M)
@@ -264,6 +271,8 @@ void lcg_elastic_pendulum_f32_mass_matrix(float t, const float *x, const float *
     M[1] = M[2];  /* M[0][1] */
     M[3] = m_2*(r*r);  /* M[1][1] */
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Forcing F(q, u, t), 2 values. */
 void lcg_elastic_pendulum_f32_forcing(float t, const float *x, const float *p, float *F)
@@ -284,6 +293,8 @@ void lcg_elastic_pendulum_f32_forcing(float t, const float *x, const float *p, f
     F[0] = g*m_2*cosf(phi_2) - (1.0F/2.0F)*k_2*(-2*l0 + 2*r) + (phi_d*phi_d)*tmp0;
     F[1] = -g*tmp0*sinf(phi_2) - 2*m_2*phi_d*r*r_d;
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Generalized accelerations ud solving M ud = F; returns a status code. */
 int lcg_elastic_pendulum_f32_accel(float t, const float *x, const float *p, float *ud)
@@ -291,12 +302,16 @@ int lcg_elastic_pendulum_f32_accel(float t, const float *x, const float *p, floa
     float qd[2];
     return lcg_elastic_pendulum_f32_dynamics(t, x, p, qd, ud);
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* First-order right-hand side xdot = f(t, x), x = (q, u), 4 values; returns a status code. xdot must not alias x. */
 int lcg_elastic_pendulum_f32_rhs(float t, const float *x, const float *p, float *xdot)
 {
     return lcg_elastic_pendulum_f32_dynamics(t, x, p, xdot, xdot + 2);
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Total mechanical energy T + V. */
 float lcg_elastic_pendulum_f32_energy(float t, const float *x, const float *p)
@@ -314,6 +329,8 @@ float lcg_elastic_pendulum_f32_energy(float t, const float *x, const float *p)
     /* Intermediate terms (0), total ops 17 (before CSE 17) */
     return -g*m_2*r*cosf(phi_2) + (1.0F/2.0F)*k_2*((-l0 + r)*(-l0 + r)) + (1.0F/2.0F)*m_2*((phi_d*phi_d)*(r*r) + r_d*r_d);
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Positions of 1 named points, 3 values each. */
 void lcg_elastic_pendulum_f32_points(float t, const float *x, const float *p, float *out)
@@ -329,6 +346,8 @@ void lcg_elastic_pendulum_f32_points(float t, const float *x, const float *p, fl
     out[1] = -r*cosf(phi_2);  /* ball.y */
     out[2] = 0;  /* ball.z */
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Jacobian df/dx of the first-order right-hand side, row-major 4 x 4; returns a status code. */
 int lcg_elastic_pendulum_f32_jacobian(float t, const float *x, const float *p, float *J)
@@ -394,6 +413,8 @@ int lcg_elastic_pendulum_f32_jacobian(float t, const float *x, const float *p, f
     }
     return LCG_OK;
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* M(q) (row-major 2 x 2) and G = dL/dq + Q, for symplectic Euler in p = M u. */
 void lcg_elastic_pendulum_f32_momentum(float t, const float *x, const float *p, float *M, float *G)
@@ -418,6 +439,7 @@ void lcg_elastic_pendulum_f32_momentum(float t, const float *x, const float *p, 
     G[0] = g*m_2*cosf(phi_2) - (1.0F/2.0F)*k_2*(-2*l0 + 2*r) + (phi_d*phi_d)*tmp0;
     G[1] = -g*tmp0*sinf(phi_2);
 }
+#endif
 
 /* ------------------------------------------------------------------------------------------
  * Integrators: 3 fixed-step schemes, a generic explicit Runge-Kutta stepper
@@ -450,6 +472,7 @@ static int lcg_elastic_pendulum_f32_finite(const float *x)
     }
     return 1;
 }
+#if LCG_BUILD_PART != 2
 
 /* classical Runge-Kutta (order 4): one step of x at t, its 4 stage(s) unrolled from the
  * coefficient arrays above; work holds 4 stage derivatives and a stage state. The
@@ -477,6 +500,8 @@ static int lcg_elastic_pendulum_f32_rk4_step(float t, float *x, const float *par
     for (m = 0; m < 4; ++m) x[m] += h * (lcg_elastic_pendulum_f32_rk4_b[0] * k[0 + m] + lcg_elastic_pendulum_f32_rk4_b[1] * k[4 + m] + lcg_elastic_pendulum_f32_rk4_b[2] * k[8 + m] + lcg_elastic_pendulum_f32_rk4_b[3] * k[12 + m]);
     return LCG_OK;
 }
+#endif /* LCG_BUILD_PART != 2 */
+#if LCG_BUILD_PART != 1
 
 /* Solve the dense system E d = r (size dim) in place by Gaussian elimination with partial
  * pivoting; E and r are overwritten, d is returned in r. Returns 0 when E is singular. */
@@ -635,7 +660,9 @@ static int lcg_elastic_pendulum_f32_symplectic_euler_step(float t, float *x, con
     for (i = 0; i < 2; ++i) x[2 + i] = momentum[i];
     return LCG_OK;
 }
+#endif /* LCG_BUILD_PART != 1 */
 
+#if LCG_BUILD_PART != 2
 /* classical Runge-Kutta (order 4): advance (t, x) by one step h; work holds 20 values. */
 int lcg_elastic_pendulum_f32_step_rk4(float *t, float *x, const float *p, float h, float *work)
 {
@@ -643,7 +670,9 @@ int lcg_elastic_pendulum_f32_step_rk4(float *t, float *x, const float *p, float 
     if (status == LCG_OK) *t += h;
     return status;
 }
+#endif
 
+#if LCG_BUILD_PART != 1
 /* symplectic (semi-implicit) Euler, momentum form (order 1): advance (t, x) by one step h; work holds 26 values. */
 int lcg_elastic_pendulum_f32_step_symplectic_euler(float *t, float *x, const float *p, float h, float *work)
 {
@@ -651,7 +680,9 @@ int lcg_elastic_pendulum_f32_step_symplectic_euler(float *t, float *x, const flo
     if (status == LCG_OK) *t += h;
     return status;
 }
+#endif
 
+#if LCG_BUILD_PART != 1
 /* implicit midpoint, Gauss s=1 (order 2): advance (t, x) by one step h; work holds 48 values. */
 int lcg_elastic_pendulum_f32_step_implicit_midpoint(float *t, float *x, const float *p, float h, float *work)
 {
@@ -659,16 +690,19 @@ int lcg_elastic_pendulum_f32_step_implicit_midpoint(float *t, float *x, const fl
     if (status == LCG_OK) *t += h;
     return status;
 }
+#endif
+#if LCG_BUILD_PART != 2
 
 /* One step of the method numbered `method`, then the finiteness check of the new state. */
 static int lcg_elastic_pendulum_f32_step_any(int method, float t, float *x, const float *p, float h,
                                  float *scratch, int project)
 {
+    float step_t = t;  /* implicit and symplectic steps go through their exported step function */
     int status;
     switch (method) {
     case 0: status = lcg_elastic_pendulum_f32_rk4_step(t, x, p, h, scratch); break;
-    case 1: status = lcg_elastic_pendulum_f32_symplectic_euler_step(t, x, p, h, scratch); break;
-    case 2: status = lcg_elastic_pendulum_f32_irk_step(1, lcg_elastic_pendulum_f32_implicit_midpoint_a, lcg_elastic_pendulum_f32_implicit_midpoint_b, lcg_elastic_pendulum_f32_implicit_midpoint_c, t, x, p, h, scratch); break;
+    case 1: status = lcg_elastic_pendulum_f32_step_symplectic_euler(&step_t, x, p, h, scratch); break;
+    case 2: status = lcg_elastic_pendulum_f32_step_implicit_midpoint(&step_t, x, p, h, scratch); break;
     default: return LCG_UNKNOWN_METHOD;
     }
     if (status == LCG_OK && !lcg_elastic_pendulum_f32_finite(x)) status = LCG_NONFINITE_STATE;
@@ -786,3 +820,4 @@ void lcg_elastic_pendulum_f32_sweep(int method, long n_members, const float *x0s
         }
     }
 }
+#endif /* LCG_BUILD_PART != 2 */

@@ -9,6 +9,12 @@
 
 #include "lcg_four_bar.h"
 
+/* Left undefined, everything below is compiled. lagcodegen's own build compiles this file twice in
+ * parallel: LCG_BUILD_PART 1 (explicit integrators and the drivers) and 2 (everything else). */
+#ifndef LCG_BUILD_PART
+#define LCG_BUILD_PART 0
+#endif
+
 /* ------------------------------------------------------------------------------------------
  * Inline sine and cosine (printed as lcg_sin and lcg_cos): faster than the libm calls
  * because sin and cos of one angle share one argument reduction once inlined, and the
@@ -342,6 +348,7 @@ static int lcg_four_bar_dynamics(double t, const double *x, const double *p, dou
     double lam[2];
     return lcg_four_bar_dynamics_constrained(t, x, p, qd, ud, lam, 0);
 }
+#if LCG_BUILD_PART != 1
 
 /* Mass matrix M(q, t), row-major 3 x 3. */
 void lcg_four_bar_mass_matrix(double t, const double *x, const double *p, double *M)
@@ -370,6 +377,8 @@ void lcg_four_bar_mass_matrix(double t, const double *x, const double *p, double
     M[5] = M[7];  /* M[1][2] */
     M[8] = (1.0/3.0)*(l3*l3)*m3;  /* M[2][2] */
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Forcing F(q, u, t), 3 values. */
 void lcg_four_bar_forcing(double t, const double *x, const double *p, double *F)
@@ -405,6 +414,8 @@ void lcg_four_bar_forcing(double t, const double *x, const double *p, double *F)
     F[1] = -g*tmp9 + (1.0/2.0)*l2*m2*tmp3*tmp8 - tmp6*tmp9;
     F[2] = -(1.0/2.0)*g*l3*m3*cos(theta3);
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Generalized accelerations ud solving M ud = F; returns a status code. */
 int lcg_four_bar_accel(double t, const double *x, const double *p, double *ud)
@@ -412,12 +423,16 @@ int lcg_four_bar_accel(double t, const double *x, const double *p, double *ud)
     double qd[3];
     return lcg_four_bar_dynamics(t, x, p, qd, ud);
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* First-order right-hand side xdot = f(t, x), x = (q, u), 6 values; returns a status code. xdot must not alias x. */
 int lcg_four_bar_rhs(double t, const double *x, const double *p, double *xdot)
 {
     return lcg_four_bar_dynamics(t, x, p, xdot, xdot + 3);
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Total mechanical energy T + V. */
 double lcg_four_bar_energy(double t, const double *x, const double *p)
@@ -454,6 +469,8 @@ double lcg_four_bar_energy(double t, const double *x, const double *p)
     const double tmp13 = (1.0/2.0)*l2*theta2_d;
     return g*l2*tmp3*tmp4 + g*l3*tmp5*tmp6 + (1.0/24.0)*(l2*l2)*m2*(theta2_d*theta2_d) + (1.0/24.0)*m1*tmp7 + m2*tmp1 + (1.0/24.0)*m3*tmp8 + tmp1*tmp2 + tmp2*((tmp0*tmp0)*tmp9 + (tmp10*tmp10)*tmp9) + tmp4*((-tmp0*tmp12 - tmp13*tmp3)*(-tmp0*tmp12 - tmp13*tmp3) + (tmp10*tmp12 + tmp13*cos(theta2))*(tmp10*tmp12 + tmp13*cos(theta2))) + tmp6*(tmp11*(tmp5*tmp5) + tmp11*(cos(theta3)*cos(theta3)));
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Positions of 2 named points, 3 values each. */
 void lcg_four_bar_points(double t, const double *x, const double *p, double *out)
@@ -475,6 +492,8 @@ void lcg_four_bar_points(double t, const double *x, const double *p, double *out
     out[4] = l2*sin(theta2) + tmp1;  /* B.y */
     out[5] = 0;  /* B.z */
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Constraints phi (2), their Jacobian A = dphi/dq (row-major 2 x 3) and dphi/dt (2). */
 void lcg_four_bar_constraint_terms(double t, const double *x, const double *p, double *phi, double *A, double *phi_t)
@@ -507,6 +526,8 @@ void lcg_four_bar_constraint_terms(double t, const double *x, const double *p, d
     phi_t[0] = 0;
     phi_t[1] = 0;
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Multipliers lam (2) and generalized constraint forces Q = A^T lam (3, or NULL): M ud = F - A^T lam. */
 int lcg_four_bar_multipliers(double t, const double *x, const double *p, double *lam, double *Q)
@@ -514,6 +535,8 @@ int lcg_four_bar_multipliers(double t, const double *x, const double *p, double 
     double qd[3], ud[3];
     return lcg_four_bar_dynamics_constrained(t, x, p, qd, ud, lam, Q);
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Constraint residuals at x: out[i] = phi_i (position level), out[2 + i] = (A u + dphi/dt)_i
  * (velocity level), 2 each. */
@@ -528,6 +551,7 @@ void lcg_four_bar_residuals(double t, const double *x, const double *p, double *
         out[2 + i] = acc;
     }
 }
+#endif
 
 /* Minimum-norm correction: solve (A A^T) y = b, then v -= A^T y. Returns 0 when A has lost rank. */
 static int lcg_four_bar_project_onto(const double *A, double *b, double *v)
@@ -551,6 +575,7 @@ static int lcg_four_bar_project_onto(const double *A, double *b, double *v)
     return 1;
 }
 
+#if LCG_BUILD_PART != 1
 /* Project x back onto the constraint manifold at time t: Gauss-Newton on phi(q, t) = 0 with
  * minimum-norm steps (at most 10, until max |phi| <= 1e-12), then the
  * speeds onto A u + dphi/dt = 0. Returns a status code. */
@@ -577,6 +602,7 @@ int lcg_four_bar_project(double t, double *x, const double *p)
     if (!lcg_four_bar_project_onto(A, phi, x + 3)) return LCG_SINGULAR_CONSTRAINTS;
     return LCG_OK;
 }
+#endif
 
 /* ------------------------------------------------------------------------------------------
  * Integrators: 1 fixed-step schemes, a generic explicit Runge-Kutta stepper
@@ -602,6 +628,7 @@ static int lcg_four_bar_finite(const double *x)
     }
     return 1;
 }
+#if LCG_BUILD_PART != 2
 
 /* classical Runge-Kutta (order 4): one step of x at t, its 4 stage(s) unrolled from the
  * coefficient arrays above; work holds 4 stage derivatives and a stage state. The
@@ -629,7 +656,11 @@ static int lcg_four_bar_rk4_step(double t, double *x, const double *parameters, 
     for (m = 0; m < 6; ++m) x[m] += h * (lcg_four_bar_rk4_b[0] * k[0 + m] + lcg_four_bar_rk4_b[1] * k[6 + m] + lcg_four_bar_rk4_b[2] * k[12 + m] + lcg_four_bar_rk4_b[3] * k[18 + m]);
     return LCG_OK;
 }
+#endif /* LCG_BUILD_PART != 2 */
+#if LCG_BUILD_PART != 1
+#endif /* LCG_BUILD_PART != 1 */
 
+#if LCG_BUILD_PART != 2
 /* classical Runge-Kutta (order 4): advance (t, x) by one step h; work holds 30 values. */
 int lcg_four_bar_step_rk4(double *t, double *x, const double *p, double h, double *work)
 {
@@ -637,6 +668,8 @@ int lcg_four_bar_step_rk4(double *t, double *x, const double *p, double h, doubl
     if (status == LCG_OK) *t += h;
     return status;
 }
+#endif
+#if LCG_BUILD_PART != 2
 
 /* One step of the method numbered `method`, then the finiteness check of the new state. */
 static int lcg_four_bar_step_any(int method, double t, double *x, const double *p, double h,
@@ -771,3 +804,4 @@ void lcg_four_bar_sweep(int method, long n_members, const double *x0s, const dou
         }
     }
 }
+#endif /* LCG_BUILD_PART != 2 */

@@ -9,6 +9,12 @@
 
 #include "lcg_four_bar_f32.h"
 
+/* Left undefined, everything below is compiled. lagcodegen's own build compiles this file twice in
+ * parallel: LCG_BUILD_PART 1 (explicit integrators and the drivers) and 2 (everything else). */
+#ifndef LCG_BUILD_PART
+#define LCG_BUILD_PART 0
+#endif
+
 /* ------------------------------------------------------------------------------------------
  * Inline sine and cosine (printed as lcg_sinf and lcg_cosf): faster than the libm calls
  * because sin and cos of one angle share one argument reduction once inlined, and the
@@ -346,6 +352,7 @@ static int lcg_four_bar_f32_dynamics(float t, const float *x, const float *p, fl
     float lam[2];
     return lcg_four_bar_f32_dynamics_constrained(t, x, p, qd, ud, lam, 0);
 }
+#if LCG_BUILD_PART != 1
 
 /* Mass matrix M(q, t), row-major 3 x 3. */
 void lcg_four_bar_f32_mass_matrix(float t, const float *x, const float *p, float *M)
@@ -374,6 +381,8 @@ void lcg_four_bar_f32_mass_matrix(float t, const float *x, const float *p, float
     M[5] = M[7];  /* M[1][2] */
     M[8] = (1.0F/3.0F)*(l3*l3)*m3;  /* M[2][2] */
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Forcing F(q, u, t), 3 values. */
 void lcg_four_bar_f32_forcing(float t, const float *x, const float *p, float *F)
@@ -409,6 +418,8 @@ void lcg_four_bar_f32_forcing(float t, const float *x, const float *p, float *F)
     F[1] = -g*tmp9 + (1.0F/2.0F)*l2*m2*tmp3*tmp8 - tmp6*tmp9;
     F[2] = -(1.0F/2.0F)*g*l3*m3*cosf(theta3);
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Generalized accelerations ud solving M ud = F; returns a status code. */
 int lcg_four_bar_f32_accel(float t, const float *x, const float *p, float *ud)
@@ -416,12 +427,16 @@ int lcg_four_bar_f32_accel(float t, const float *x, const float *p, float *ud)
     float qd[3];
     return lcg_four_bar_f32_dynamics(t, x, p, qd, ud);
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* First-order right-hand side xdot = f(t, x), x = (q, u), 6 values; returns a status code. xdot must not alias x. */
 int lcg_four_bar_f32_rhs(float t, const float *x, const float *p, float *xdot)
 {
     return lcg_four_bar_f32_dynamics(t, x, p, xdot, xdot + 3);
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Total mechanical energy T + V. */
 float lcg_four_bar_f32_energy(float t, const float *x, const float *p)
@@ -458,6 +473,8 @@ float lcg_four_bar_f32_energy(float t, const float *x, const float *p)
     const float tmp13 = (1.0F/2.0F)*l2*theta2_d;
     return g*l2*tmp3*tmp4 + g*l3*tmp5*tmp6 + (1.0F/24.0F)*(l2*l2)*m2*(theta2_d*theta2_d) + (1.0F/24.0F)*m1*tmp7 + m2*tmp1 + (1.0F/24.0F)*m3*tmp8 + tmp1*tmp2 + tmp2*((tmp0*tmp0)*tmp9 + (tmp10*tmp10)*tmp9) + tmp4*((-tmp0*tmp12 - tmp13*tmp3)*(-tmp0*tmp12 - tmp13*tmp3) + (tmp10*tmp12 + tmp13*cosf(theta2))*(tmp10*tmp12 + tmp13*cosf(theta2))) + tmp6*(tmp11*(tmp5*tmp5) + tmp11*(cosf(theta3)*cosf(theta3)));
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Positions of 2 named points, 3 values each. */
 void lcg_four_bar_f32_points(float t, const float *x, const float *p, float *out)
@@ -479,6 +496,8 @@ void lcg_four_bar_f32_points(float t, const float *x, const float *p, float *out
     out[4] = l2*sinf(theta2) + tmp1;  /* B.y */
     out[5] = 0;  /* B.z */
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Constraints phi (2), their Jacobian A = dphi/dq (row-major 2 x 3) and dphi/dt (2). */
 void lcg_four_bar_f32_constraint_terms(float t, const float *x, const float *p, float *phi, float *A, float *phi_t)
@@ -511,6 +530,8 @@ void lcg_four_bar_f32_constraint_terms(float t, const float *x, const float *p, 
     phi_t[0] = 0;
     phi_t[1] = 0;
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Multipliers lam (2) and generalized constraint forces Q = A^T lam (3, or NULL): M ud = F - A^T lam. */
 int lcg_four_bar_f32_multipliers(float t, const float *x, const float *p, float *lam, float *Q)
@@ -518,6 +539,8 @@ int lcg_four_bar_f32_multipliers(float t, const float *x, const float *p, float 
     float qd[3], ud[3];
     return lcg_four_bar_f32_dynamics_constrained(t, x, p, qd, ud, lam, Q);
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Constraint residuals at x: out[i] = phi_i (position level), out[2 + i] = (A u + dphi/dt)_i
  * (velocity level), 2 each. */
@@ -532,6 +555,7 @@ void lcg_four_bar_f32_residuals(float t, const float *x, const float *p, float *
         out[2 + i] = acc;
     }
 }
+#endif
 
 /* Minimum-norm correction: solve (A A^T) y = b, then v -= A^T y. Returns 0 when A has lost rank. */
 static int lcg_four_bar_f32_project_onto(const float *A, float *b, float *v)
@@ -555,6 +579,7 @@ static int lcg_four_bar_f32_project_onto(const float *A, float *b, float *v)
     return 1;
 }
 
+#if LCG_BUILD_PART != 1
 /* Project x back onto the constraint manifold at time t: Gauss-Newton on phi(q, t) = 0 with
  * minimum-norm steps (at most 10, until max |phi| <= 1e-06F), then the
  * speeds onto A u + dphi/dt = 0. Returns a status code. */
@@ -581,6 +606,7 @@ int lcg_four_bar_f32_project(float t, float *x, const float *p)
     if (!lcg_four_bar_f32_project_onto(A, phi, x + 3)) return LCG_SINGULAR_CONSTRAINTS;
     return LCG_OK;
 }
+#endif
 
 /* ------------------------------------------------------------------------------------------
  * Integrators: 1 fixed-step schemes, a generic explicit Runge-Kutta stepper
@@ -606,6 +632,7 @@ static int lcg_four_bar_f32_finite(const float *x)
     }
     return 1;
 }
+#if LCG_BUILD_PART != 2
 
 /* classical Runge-Kutta (order 4): one step of x at t, its 4 stage(s) unrolled from the
  * coefficient arrays above; work holds 4 stage derivatives and a stage state. The
@@ -633,7 +660,11 @@ static int lcg_four_bar_f32_rk4_step(float t, float *x, const float *parameters,
     for (m = 0; m < 6; ++m) x[m] += h * (lcg_four_bar_f32_rk4_b[0] * k[0 + m] + lcg_four_bar_f32_rk4_b[1] * k[6 + m] + lcg_four_bar_f32_rk4_b[2] * k[12 + m] + lcg_four_bar_f32_rk4_b[3] * k[18 + m]);
     return LCG_OK;
 }
+#endif /* LCG_BUILD_PART != 2 */
+#if LCG_BUILD_PART != 1
+#endif /* LCG_BUILD_PART != 1 */
 
+#if LCG_BUILD_PART != 2
 /* classical Runge-Kutta (order 4): advance (t, x) by one step h; work holds 30 values. */
 int lcg_four_bar_f32_step_rk4(float *t, float *x, const float *p, float h, float *work)
 {
@@ -641,6 +672,8 @@ int lcg_four_bar_f32_step_rk4(float *t, float *x, const float *p, float h, float
     if (status == LCG_OK) *t += h;
     return status;
 }
+#endif
+#if LCG_BUILD_PART != 2
 
 /* One step of the method numbered `method`, then the finiteness check of the new state. */
 static int lcg_four_bar_f32_step_any(int method, float t, float *x, const float *p, float h,
@@ -775,3 +808,4 @@ void lcg_four_bar_f32_sweep(int method, long n_members, const float *x0s, const 
         }
     }
 }
+#endif /* LCG_BUILD_PART != 2 */

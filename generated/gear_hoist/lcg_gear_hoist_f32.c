@@ -9,6 +9,12 @@
 
 #include "lcg_gear_hoist_f32.h"
 
+/* Left undefined, everything below is compiled. lagcodegen's own build compiles this file twice in
+ * parallel: LCG_BUILD_PART 1 (explicit integrators and the drivers) and 2 (everything else). */
+#ifndef LCG_BUILD_PART
+#define LCG_BUILD_PART 0
+#endif
+
 #ifndef LCG_HOT_INLINE
 #ifdef __GNUC__  /* the compiler's own heuristics keep the call: force it, for small kernels only */
 #define LCG_HOT_INLINE inline __attribute__((always_inline))
@@ -107,6 +113,7 @@ static int lcg_gear_hoist_f32_dynamics(float t, const float *x, const float *p, 
 {
     return lcg_gear_hoist_f32_dynamics_hot(t, x, p, qd, ud);
 }
+#if LCG_BUILD_PART != 1
 
 /* Mass matrix M(q, t), row-major 1 x 1. */
 void lcg_gear_hoist_f32_mass_matrix(float t, const float *x, const float *p, float *M)
@@ -128,6 +135,8 @@ void lcg_gear_hoist_f32_mass_matrix(float t, const float *x, const float *p, flo
     /* Mass matrix, lower triangle, mirrored */
     M[0] = (P1*(rho1*rho1) + P2*(rho2*rho2)*tmp0 + Q_2*(r*r)*tmp0)/g;  /* M[0][0] */
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Forcing F(q, u, t), 1 values. */
 void lcg_gear_hoist_f32_forcing(float t, const float *x, const float *p, float *F)
@@ -144,6 +153,8 @@ void lcg_gear_hoist_f32_forcing(float t, const float *x, const float *p, float *
     /* Forcing */
     F[0] = M_2 - Q_2*r*r1/r2;
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Generalized accelerations ud solving M ud = F; returns a status code. */
 int lcg_gear_hoist_f32_accel(float t, const float *x, const float *p, float *ud)
@@ -151,12 +162,16 @@ int lcg_gear_hoist_f32_accel(float t, const float *x, const float *p, float *ud)
     float qd[1];
     return lcg_gear_hoist_f32_dynamics(t, x, p, qd, ud);
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* First-order right-hand side xdot = f(t, x), x = (q, u), 2 values; returns a status code. xdot must not alias x. */
 int lcg_gear_hoist_f32_rhs(float t, const float *x, const float *p, float *xdot)
 {
     return lcg_gear_hoist_f32_dynamics(t, x, p, xdot, xdot + 1);
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Total mechanical energy T + V. */
 float lcg_gear_hoist_f32_energy(float t, const float *x, const float *p)
@@ -179,6 +194,8 @@ float lcg_gear_hoist_f32_energy(float t, const float *x, const float *p)
     const float tmp1 = (r1*r1)*tmp0/(r2*r2);
     return P1*(rho1*rho1)*tmp0 + P2*(rho2*rho2)*tmp1 + Q_2*phi_2*r*r1/r2 + Q_2*(r*r)*tmp1;
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Jacobian df/dx of the first-order right-hand side, row-major 2 x 2; returns a status code. */
 int lcg_gear_hoist_f32_jacobian(float t, const float *x, const float *p, float *J)
@@ -222,6 +239,8 @@ int lcg_gear_hoist_f32_jacobian(float t, const float *x, const float *p, float *
     }
     return LCG_OK;
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* M(q) (row-major 1 x 1) and G = dL/dq + Q, for symplectic Euler in p = M u. */
 void lcg_gear_hoist_f32_momentum(float t, const float *x, const float *p, float *M, float *G)
@@ -246,6 +265,7 @@ void lcg_gear_hoist_f32_momentum(float t, const float *x, const float *p, float 
     /* G = dL/dq + Q */
     G[0] = M_2 - Q_2*r*r1/r2;
 }
+#endif
 
 /* ------------------------------------------------------------------------------------------
  * Integrators: 3 fixed-step schemes, a generic explicit Runge-Kutta stepper
@@ -278,6 +298,7 @@ static int lcg_gear_hoist_f32_finite(const float *x)
     }
     return 1;
 }
+#if LCG_BUILD_PART != 2
 
 /* classical Runge-Kutta (order 4): one step of x at t, its 4 stage(s) unrolled from the
  * coefficient arrays above; work holds 4 stage derivatives and a stage state. The
@@ -305,6 +326,8 @@ static int lcg_gear_hoist_f32_rk4_step(float t, float *x, const float *parameter
     for (m = 0; m < 2; ++m) x[m] += h * (lcg_gear_hoist_f32_rk4_b[0] * k[0 + m] + lcg_gear_hoist_f32_rk4_b[1] * k[2 + m] + lcg_gear_hoist_f32_rk4_b[2] * k[4 + m] + lcg_gear_hoist_f32_rk4_b[3] * k[6 + m]);
     return LCG_OK;
 }
+#endif /* LCG_BUILD_PART != 2 */
+#if LCG_BUILD_PART != 1
 
 /* Solve the dense system E d = r (size dim) in place by Gaussian elimination with partial
  * pivoting; E and r are overwritten, d is returned in r. Returns 0 when E is singular. */
@@ -463,7 +486,9 @@ static int lcg_gear_hoist_f32_symplectic_euler_step(float t, float *x, const flo
     for (i = 0; i < 1; ++i) x[1 + i] = momentum[i];
     return LCG_OK;
 }
+#endif /* LCG_BUILD_PART != 1 */
 
+#if LCG_BUILD_PART != 2
 /* classical Runge-Kutta (order 4): advance (t, x) by one step h; work holds 10 values. */
 int lcg_gear_hoist_f32_step_rk4(float *t, float *x, const float *p, float h, float *work)
 {
@@ -471,7 +496,9 @@ int lcg_gear_hoist_f32_step_rk4(float *t, float *x, const float *p, float h, flo
     if (status == LCG_OK) *t += h;
     return status;
 }
+#endif
 
+#if LCG_BUILD_PART != 1
 /* symplectic (semi-implicit) Euler, momentum form (order 1): advance (t, x) by one step h; work holds 10 values. */
 int lcg_gear_hoist_f32_step_symplectic_euler(float *t, float *x, const float *p, float h, float *work)
 {
@@ -479,7 +506,9 @@ int lcg_gear_hoist_f32_step_symplectic_euler(float *t, float *x, const float *p,
     if (status == LCG_OK) *t += h;
     return status;
 }
+#endif
 
+#if LCG_BUILD_PART != 1
 /* implicit midpoint, Gauss s=1 (order 2): advance (t, x) by one step h; work holds 16 values. */
 int lcg_gear_hoist_f32_step_implicit_midpoint(float *t, float *x, const float *p, float h, float *work)
 {
@@ -487,16 +516,19 @@ int lcg_gear_hoist_f32_step_implicit_midpoint(float *t, float *x, const float *p
     if (status == LCG_OK) *t += h;
     return status;
 }
+#endif
+#if LCG_BUILD_PART != 2
 
 /* One step of the method numbered `method`, then the finiteness check of the new state. */
 static int lcg_gear_hoist_f32_step_any(int method, float t, float *x, const float *p, float h,
                                  float *scratch, int project)
 {
+    float step_t = t;  /* implicit and symplectic steps go through their exported step function */
     int status;
     switch (method) {
     case 0: status = lcg_gear_hoist_f32_rk4_step(t, x, p, h, scratch); break;
-    case 1: status = lcg_gear_hoist_f32_symplectic_euler_step(t, x, p, h, scratch); break;
-    case 2: status = lcg_gear_hoist_f32_irk_step(1, lcg_gear_hoist_f32_implicit_midpoint_a, lcg_gear_hoist_f32_implicit_midpoint_b, lcg_gear_hoist_f32_implicit_midpoint_c, t, x, p, h, scratch); break;
+    case 1: status = lcg_gear_hoist_f32_step_symplectic_euler(&step_t, x, p, h, scratch); break;
+    case 2: status = lcg_gear_hoist_f32_step_implicit_midpoint(&step_t, x, p, h, scratch); break;
     default: return LCG_UNKNOWN_METHOD;
     }
     if (status == LCG_OK && !lcg_gear_hoist_f32_finite(x)) status = LCG_NONFINITE_STATE;
@@ -614,3 +646,4 @@ void lcg_gear_hoist_f32_sweep(int method, long n_members, const float *x0s, cons
         }
     }
 }
+#endif /* LCG_BUILD_PART != 2 */

@@ -9,6 +9,12 @@
 
 #include "lcg_pendulum_chain_5.h"
 
+/* Left undefined, everything below is compiled. lagcodegen's own build compiles this file twice in
+ * parallel: LCG_BUILD_PART 1 (explicit integrators and the drivers) and 2 (everything else). */
+#ifndef LCG_BUILD_PART
+#define LCG_BUILD_PART 0
+#endif
+
 /* ------------------------------------------------------------------------------------------
  * Inline sine and cosine (printed as lcg_sin and lcg_cos): faster than the libm calls
  * because sin and cos of one angle share one argument reduction once inlined, and the
@@ -345,6 +351,7 @@ static int lcg_pendulum_chain_5_dynamics(double t, const double *x, const double
     ud[0] = w_0;
     return LCG_OK;
 }
+#if LCG_BUILD_PART != 1
 
 /* Mass matrix M(q, t), row-major 5 x 5. */
 void lcg_pendulum_chain_5_mass_matrix(double t, const double *x, const double *p, double *M)
@@ -417,6 +424,8 @@ void lcg_pendulum_chain_5_mass_matrix(double t, const double *x, const double *p
     M[19] = M[23];  /* M[3][4] */
     M[24] = (l5*l5)*m5;  /* M[4][4] */
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Forcing F(q, u, t), 5 values. */
 void lcg_pendulum_chain_5_forcing(double t, const double *x, const double *p, double *F)
@@ -491,6 +500,8 @@ void lcg_pendulum_chain_5_forcing(double t, const double *x, const double *p, do
     F[3] = -g*tmp0*tmp37 - l4*tmp14*tmp32 - tmp20*tmp37;
     F[4] = -g*m5*tmp38 - l5*tmp17*tmp31 - tmp19*tmp38;
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Generalized accelerations ud solving M ud = F; returns a status code. */
 int lcg_pendulum_chain_5_accel(double t, const double *x, const double *p, double *ud)
@@ -498,12 +509,16 @@ int lcg_pendulum_chain_5_accel(double t, const double *x, const double *p, doubl
     double qd[5];
     return lcg_pendulum_chain_5_dynamics(t, x, p, qd, ud);
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* First-order right-hand side xdot = f(t, x), x = (q, u), 10 values; returns a status code. xdot must not alias x. */
 int lcg_pendulum_chain_5_rhs(double t, const double *x, const double *p, double *xdot)
 {
     return lcg_pendulum_chain_5_dynamics(t, x, p, xdot, xdot + 5);
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Total mechanical energy T + V. */
 double lcg_pendulum_chain_5_energy(double t, const double *x, const double *p)
@@ -555,6 +570,8 @@ double lcg_pendulum_chain_5_energy(double t, const double *x, const double *p)
     const double tmp20 = l5*q5_d;
     return g*l1*tmp7*(-m1 - tmp6) - g*l2*tmp5*tmp6 - g*l3*tmp3*tmp4 - g*l4*tmp1*tmp2 - g*l5*m5*tmp0 + (1.0/2.0)*m1*((tmp7*tmp7)*tmp9 + (tmp8*tmp8)*tmp9) + (1.0/2.0)*m2*(tmp12*tmp12 + tmp13*tmp13) + (1.0/2.0)*m3*(tmp15*tmp15 + tmp16*tmp16) + (1.0/2.0)*m4*(tmp18*tmp18 + tmp19*tmp19) + (1.0/2.0)*m5*((tmp18 + tmp20*sin(q5))*(tmp18 + tmp20*sin(q5)) + (tmp0*tmp20 + tmp19)*(tmp0*tmp20 + tmp19));
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Positions of 5 named points, 3 values each. */
 void lcg_pendulum_chain_5_points(double t, const double *x, const double *p, double *out)
@@ -597,6 +614,8 @@ void lcg_pendulum_chain_5_points(double t, const double *x, const double *p, dou
     out[13] = -l5*cos(q5) - tmp7;  /* bob5.y */
     out[14] = 0;  /* bob5.z */
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Jacobian df/dx of the first-order right-hand side, row-major 10 x 10; returns a status code. */
 int lcg_pendulum_chain_5_jacobian(double t, const double *x, const double *p, double *J)
@@ -961,6 +980,8 @@ int lcg_pendulum_chain_5_jacobian(double t, const double *x, const double *p, do
     }
     return LCG_OK;
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* M(q) (row-major 5 x 5) and G = dL/dq + Q, for symplectic Euler in p = M u. */
 void lcg_pendulum_chain_5_momentum(double t, const double *x, const double *p, double *M, double *G)
@@ -1106,6 +1127,7 @@ void lcg_pendulum_chain_5_momentum(double t, const double *x, const double *p, d
     G[3] = -g*tmp0*tmp17 + tmp0*tmp29*tmp31 + tmp0*tmp69*tmp71 + tmp0*tmp78*tmp80 - tmp17*tmp55 - tmp19*tmp63 + tmp28*tmp81 + tmp30*tmp44 + tmp37*tmp79 + tmp42*tmp70 + tmp82*tmp83;
     G[4] = -g*m5*tmp21 + m5*tmp24*tmp26 + m5*tmp66*tmp68 + m5*tmp75*tmp77 + m5*tmp81*tmp83 - tmp21*tmp54 - tmp23*tmp62 + tmp25*tmp44 + tmp32*tmp82 + tmp37*tmp76 + tmp42*tmp67;
 }
+#endif
 
 /* ------------------------------------------------------------------------------------------
  * Integrators: 3 fixed-step schemes, a generic explicit Runge-Kutta stepper
@@ -1138,6 +1160,7 @@ static int lcg_pendulum_chain_5_finite(const double *x)
     }
     return 1;
 }
+#if LCG_BUILD_PART != 2
 
 /* classical Runge-Kutta (order 4): one step of x at t, its 4 stage(s) unrolled from the
  * coefficient arrays above; work holds 4 stage derivatives and a stage state. The
@@ -1165,6 +1188,8 @@ static int lcg_pendulum_chain_5_rk4_step(double t, double *x, const double *para
     for (m = 0; m < 10; ++m) x[m] += h * (lcg_pendulum_chain_5_rk4_b[0] * k[0 + m] + lcg_pendulum_chain_5_rk4_b[1] * k[10 + m] + lcg_pendulum_chain_5_rk4_b[2] * k[20 + m] + lcg_pendulum_chain_5_rk4_b[3] * k[30 + m]);
     return LCG_OK;
 }
+#endif /* LCG_BUILD_PART != 2 */
+#if LCG_BUILD_PART != 1
 
 /* Solve the dense system E d = r (size dim) in place by Gaussian elimination with partial
  * pivoting; E and r are overwritten, d is returned in r. Returns 0 when E is singular. */
@@ -1323,7 +1348,9 @@ static int lcg_pendulum_chain_5_symplectic_euler_step(double t, double *x, const
     for (i = 0; i < 5; ++i) x[5 + i] = momentum[i];
     return LCG_OK;
 }
+#endif /* LCG_BUILD_PART != 1 */
 
+#if LCG_BUILD_PART != 2
 /* classical Runge-Kutta (order 4): advance (t, x) by one step h; work holds 50 values. */
 int lcg_pendulum_chain_5_step_rk4(double *t, double *x, const double *p, double h, double *work)
 {
@@ -1331,7 +1358,9 @@ int lcg_pendulum_chain_5_step_rk4(double *t, double *x, const double *p, double 
     if (status == LCG_OK) *t += h;
     return status;
 }
+#endif
 
+#if LCG_BUILD_PART != 1
 /* symplectic (semi-implicit) Euler, momentum form (order 1): advance (t, x) by one step h; work holds 110 values. */
 int lcg_pendulum_chain_5_step_symplectic_euler(double *t, double *x, const double *p, double h, double *work)
 {
@@ -1339,7 +1368,9 @@ int lcg_pendulum_chain_5_step_symplectic_euler(double *t, double *x, const doubl
     if (status == LCG_OK) *t += h;
     return status;
 }
+#endif
 
+#if LCG_BUILD_PART != 1
 /* implicit midpoint, Gauss s=1 (order 2): advance (t, x) by one step h; work holds 240 values. */
 int lcg_pendulum_chain_5_step_implicit_midpoint(double *t, double *x, const double *p, double h, double *work)
 {
@@ -1347,16 +1378,19 @@ int lcg_pendulum_chain_5_step_implicit_midpoint(double *t, double *x, const doub
     if (status == LCG_OK) *t += h;
     return status;
 }
+#endif
+#if LCG_BUILD_PART != 2
 
 /* One step of the method numbered `method`, then the finiteness check of the new state. */
 static int lcg_pendulum_chain_5_step_any(int method, double t, double *x, const double *p, double h,
                                  double *scratch, int project)
 {
+    double step_t = t;  /* implicit and symplectic steps go through their exported step function */
     int status;
     switch (method) {
     case 0: status = lcg_pendulum_chain_5_rk4_step(t, x, p, h, scratch); break;
-    case 1: status = lcg_pendulum_chain_5_symplectic_euler_step(t, x, p, h, scratch); break;
-    case 2: status = lcg_pendulum_chain_5_irk_step(1, lcg_pendulum_chain_5_implicit_midpoint_a, lcg_pendulum_chain_5_implicit_midpoint_b, lcg_pendulum_chain_5_implicit_midpoint_c, t, x, p, h, scratch); break;
+    case 1: status = lcg_pendulum_chain_5_step_symplectic_euler(&step_t, x, p, h, scratch); break;
+    case 2: status = lcg_pendulum_chain_5_step_implicit_midpoint(&step_t, x, p, h, scratch); break;
     default: return LCG_UNKNOWN_METHOD;
     }
     if (status == LCG_OK && !lcg_pendulum_chain_5_finite(x)) status = LCG_NONFINITE_STATE;
@@ -1474,3 +1508,4 @@ void lcg_pendulum_chain_5_sweep(int method, long n_members, const double *x0s, c
         }
     }
 }
+#endif /* LCG_BUILD_PART != 2 */

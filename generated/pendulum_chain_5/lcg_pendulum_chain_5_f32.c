@@ -9,6 +9,12 @@
 
 #include "lcg_pendulum_chain_5_f32.h"
 
+/* Left undefined, everything below is compiled. lagcodegen's own build compiles this file twice in
+ * parallel: LCG_BUILD_PART 1 (explicit integrators and the drivers) and 2 (everything else). */
+#ifndef LCG_BUILD_PART
+#define LCG_BUILD_PART 0
+#endif
+
 /* ------------------------------------------------------------------------------------------
  * Inline sine and cosine (printed as lcg_sinf and lcg_cosf): faster than the libm calls
  * because sin and cos of one angle share one argument reduction once inlined, and the
@@ -349,6 +355,7 @@ static int lcg_pendulum_chain_5_f32_dynamics(float t, const float *x, const floa
     ud[0] = w_0;
     return LCG_OK;
 }
+#if LCG_BUILD_PART != 1
 
 /* Mass matrix M(q, t), row-major 5 x 5. */
 void lcg_pendulum_chain_5_f32_mass_matrix(float t, const float *x, const float *p, float *M)
@@ -421,6 +428,8 @@ void lcg_pendulum_chain_5_f32_mass_matrix(float t, const float *x, const float *
     M[19] = M[23];  /* M[3][4] */
     M[24] = (l5*l5)*m5;  /* M[4][4] */
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Forcing F(q, u, t), 5 values. */
 void lcg_pendulum_chain_5_f32_forcing(float t, const float *x, const float *p, float *F)
@@ -495,6 +504,8 @@ void lcg_pendulum_chain_5_f32_forcing(float t, const float *x, const float *p, f
     F[3] = -g*tmp0*tmp37 - l4*tmp14*tmp32 - tmp20*tmp37;
     F[4] = -g*m5*tmp38 - l5*tmp17*tmp31 - tmp19*tmp38;
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Generalized accelerations ud solving M ud = F; returns a status code. */
 int lcg_pendulum_chain_5_f32_accel(float t, const float *x, const float *p, float *ud)
@@ -502,12 +513,16 @@ int lcg_pendulum_chain_5_f32_accel(float t, const float *x, const float *p, floa
     float qd[5];
     return lcg_pendulum_chain_5_f32_dynamics(t, x, p, qd, ud);
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* First-order right-hand side xdot = f(t, x), x = (q, u), 10 values; returns a status code. xdot must not alias x. */
 int lcg_pendulum_chain_5_f32_rhs(float t, const float *x, const float *p, float *xdot)
 {
     return lcg_pendulum_chain_5_f32_dynamics(t, x, p, xdot, xdot + 5);
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Total mechanical energy T + V. */
 float lcg_pendulum_chain_5_f32_energy(float t, const float *x, const float *p)
@@ -559,6 +574,8 @@ float lcg_pendulum_chain_5_f32_energy(float t, const float *x, const float *p)
     const float tmp20 = l5*q5_d;
     return g*l1*tmp7*(-m1 - tmp6) - g*l2*tmp5*tmp6 - g*l3*tmp3*tmp4 - g*l4*tmp1*tmp2 - g*l5*m5*tmp0 + (1.0F/2.0F)*m1*((tmp7*tmp7)*tmp9 + (tmp8*tmp8)*tmp9) + (1.0F/2.0F)*m2*(tmp12*tmp12 + tmp13*tmp13) + (1.0F/2.0F)*m3*(tmp15*tmp15 + tmp16*tmp16) + (1.0F/2.0F)*m4*(tmp18*tmp18 + tmp19*tmp19) + (1.0F/2.0F)*m5*((tmp18 + tmp20*sinf(q5))*(tmp18 + tmp20*sinf(q5)) + (tmp0*tmp20 + tmp19)*(tmp0*tmp20 + tmp19));
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Positions of 5 named points, 3 values each. */
 void lcg_pendulum_chain_5_f32_points(float t, const float *x, const float *p, float *out)
@@ -601,6 +618,8 @@ void lcg_pendulum_chain_5_f32_points(float t, const float *x, const float *p, fl
     out[13] = -l5*cosf(q5) - tmp7;  /* bob5.y */
     out[14] = 0;  /* bob5.z */
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Jacobian df/dx of the first-order right-hand side, row-major 10 x 10; returns a status code. */
 int lcg_pendulum_chain_5_f32_jacobian(float t, const float *x, const float *p, float *J)
@@ -965,6 +984,8 @@ int lcg_pendulum_chain_5_f32_jacobian(float t, const float *x, const float *p, f
     }
     return LCG_OK;
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* M(q) (row-major 5 x 5) and G = dL/dq + Q, for symplectic Euler in p = M u. */
 void lcg_pendulum_chain_5_f32_momentum(float t, const float *x, const float *p, float *M, float *G)
@@ -1110,6 +1131,7 @@ void lcg_pendulum_chain_5_f32_momentum(float t, const float *x, const float *p, 
     G[3] = -g*tmp0*tmp17 + tmp0*tmp29*tmp31 + tmp0*tmp69*tmp71 + tmp0*tmp78*tmp80 - tmp17*tmp55 - tmp19*tmp63 + tmp28*tmp81 + tmp30*tmp44 + tmp37*tmp79 + tmp42*tmp70 + tmp82*tmp83;
     G[4] = -g*m5*tmp21 + m5*tmp24*tmp26 + m5*tmp66*tmp68 + m5*tmp75*tmp77 + m5*tmp81*tmp83 - tmp21*tmp54 - tmp23*tmp62 + tmp25*tmp44 + tmp32*tmp82 + tmp37*tmp76 + tmp42*tmp67;
 }
+#endif
 
 /* ------------------------------------------------------------------------------------------
  * Integrators: 3 fixed-step schemes, a generic explicit Runge-Kutta stepper
@@ -1142,6 +1164,7 @@ static int lcg_pendulum_chain_5_f32_finite(const float *x)
     }
     return 1;
 }
+#if LCG_BUILD_PART != 2
 
 /* classical Runge-Kutta (order 4): one step of x at t, its 4 stage(s) unrolled from the
  * coefficient arrays above; work holds 4 stage derivatives and a stage state. The
@@ -1169,6 +1192,8 @@ static int lcg_pendulum_chain_5_f32_rk4_step(float t, float *x, const float *par
     for (m = 0; m < 10; ++m) x[m] += h * (lcg_pendulum_chain_5_f32_rk4_b[0] * k[0 + m] + lcg_pendulum_chain_5_f32_rk4_b[1] * k[10 + m] + lcg_pendulum_chain_5_f32_rk4_b[2] * k[20 + m] + lcg_pendulum_chain_5_f32_rk4_b[3] * k[30 + m]);
     return LCG_OK;
 }
+#endif /* LCG_BUILD_PART != 2 */
+#if LCG_BUILD_PART != 1
 
 /* Solve the dense system E d = r (size dim) in place by Gaussian elimination with partial
  * pivoting; E and r are overwritten, d is returned in r. Returns 0 when E is singular. */
@@ -1327,7 +1352,9 @@ static int lcg_pendulum_chain_5_f32_symplectic_euler_step(float t, float *x, con
     for (i = 0; i < 5; ++i) x[5 + i] = momentum[i];
     return LCG_OK;
 }
+#endif /* LCG_BUILD_PART != 1 */
 
+#if LCG_BUILD_PART != 2
 /* classical Runge-Kutta (order 4): advance (t, x) by one step h; work holds 50 values. */
 int lcg_pendulum_chain_5_f32_step_rk4(float *t, float *x, const float *p, float h, float *work)
 {
@@ -1335,7 +1362,9 @@ int lcg_pendulum_chain_5_f32_step_rk4(float *t, float *x, const float *p, float 
     if (status == LCG_OK) *t += h;
     return status;
 }
+#endif
 
+#if LCG_BUILD_PART != 1
 /* symplectic (semi-implicit) Euler, momentum form (order 1): advance (t, x) by one step h; work holds 110 values. */
 int lcg_pendulum_chain_5_f32_step_symplectic_euler(float *t, float *x, const float *p, float h, float *work)
 {
@@ -1343,7 +1372,9 @@ int lcg_pendulum_chain_5_f32_step_symplectic_euler(float *t, float *x, const flo
     if (status == LCG_OK) *t += h;
     return status;
 }
+#endif
 
+#if LCG_BUILD_PART != 1
 /* implicit midpoint, Gauss s=1 (order 2): advance (t, x) by one step h; work holds 240 values. */
 int lcg_pendulum_chain_5_f32_step_implicit_midpoint(float *t, float *x, const float *p, float h, float *work)
 {
@@ -1351,16 +1382,19 @@ int lcg_pendulum_chain_5_f32_step_implicit_midpoint(float *t, float *x, const fl
     if (status == LCG_OK) *t += h;
     return status;
 }
+#endif
+#if LCG_BUILD_PART != 2
 
 /* One step of the method numbered `method`, then the finiteness check of the new state. */
 static int lcg_pendulum_chain_5_f32_step_any(int method, float t, float *x, const float *p, float h,
                                  float *scratch, int project)
 {
+    float step_t = t;  /* implicit and symplectic steps go through their exported step function */
     int status;
     switch (method) {
     case 0: status = lcg_pendulum_chain_5_f32_rk4_step(t, x, p, h, scratch); break;
-    case 1: status = lcg_pendulum_chain_5_f32_symplectic_euler_step(t, x, p, h, scratch); break;
-    case 2: status = lcg_pendulum_chain_5_f32_irk_step(1, lcg_pendulum_chain_5_f32_implicit_midpoint_a, lcg_pendulum_chain_5_f32_implicit_midpoint_b, lcg_pendulum_chain_5_f32_implicit_midpoint_c, t, x, p, h, scratch); break;
+    case 1: status = lcg_pendulum_chain_5_f32_step_symplectic_euler(&step_t, x, p, h, scratch); break;
+    case 2: status = lcg_pendulum_chain_5_f32_step_implicit_midpoint(&step_t, x, p, h, scratch); break;
     default: return LCG_UNKNOWN_METHOD;
     }
     if (status == LCG_OK && !lcg_pendulum_chain_5_f32_finite(x)) status = LCG_NONFINITE_STATE;
@@ -1478,3 +1512,4 @@ void lcg_pendulum_chain_5_f32_sweep(int method, long n_members, const float *x0s
         }
     }
 }
+#endif /* LCG_BUILD_PART != 2 */

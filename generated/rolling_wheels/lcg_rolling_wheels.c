@@ -9,6 +9,12 @@
 
 #include "lcg_rolling_wheels.h"
 
+/* Left undefined, everything below is compiled. lagcodegen's own build compiles this file twice in
+ * parallel: LCG_BUILD_PART 1 (explicit integrators and the drivers) and 2 (everything else). */
+#ifndef LCG_BUILD_PART
+#define LCG_BUILD_PART 0
+#endif
+
 /* ------------------------------------------------------------------------------------------
  * Inline sine and cosine (printed as lcg_sin and lcg_cos): faster than the libm calls
  * because sin and cos of one angle share one argument reduction once inlined, and the
@@ -234,6 +240,7 @@ static int lcg_rolling_wheels_dynamics(double t, const double *x, const double *
 {
     return lcg_rolling_wheels_dynamics_hot(t, x, p, qd, ud);
 }
+#if LCG_BUILD_PART != 1
 
 /* Mass matrix M(q, t), row-major 1 x 1. */
 void lcg_rolling_wheels_mass_matrix(double t, const double *x, const double *p, double *M)
@@ -250,6 +257,8 @@ void lcg_rolling_wheels_mass_matrix(double t, const double *x, const double *p, 
     /* Mass matrix, lower triangle, mirrored */
     M[0] = 2*J_2/(r*r) + (2*P + Q_2)/g;  /* M[0][0] */
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Forcing F(q, u, t), 1 values. */
 void lcg_rolling_wheels_forcing(double t, const double *x, const double *p, double *F)
@@ -264,6 +273,8 @@ void lcg_rolling_wheels_forcing(double t, const double *x, const double *p, doub
     /* Forcing */
     F[0] = -(-2*P - Q_2)*sin(beta);
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Generalized accelerations ud solving M ud = F; returns a status code. */
 int lcg_rolling_wheels_accel(double t, const double *x, const double *p, double *ud)
@@ -271,12 +282,16 @@ int lcg_rolling_wheels_accel(double t, const double *x, const double *p, double 
     double qd[1];
     return lcg_rolling_wheels_dynamics(t, x, p, qd, ud);
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* First-order right-hand side xdot = f(t, x), x = (q, u), 2 values; returns a status code. xdot must not alias x. */
 int lcg_rolling_wheels_rhs(double t, const double *x, const double *p, double *xdot)
 {
     return lcg_rolling_wheels_dynamics(t, x, p, xdot, xdot + 1);
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Total mechanical energy T + V. */
 double lcg_rolling_wheels_energy(double t, const double *x, const double *p)
@@ -296,6 +311,8 @@ double lcg_rolling_wheels_energy(double t, const double *x, const double *p)
     const double tmp1 = 2*P + Q_2;
     return J_2*tmp0/(r*r) - s_2*tmp1*sin(beta) + (1.0/2.0)*tmp0*tmp1/g;
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Jacobian df/dx of the first-order right-hand side, row-major 2 x 2; returns a status code. */
 int lcg_rolling_wheels_jacobian(double t, const double *x, const double *p, double *J)
@@ -334,6 +351,8 @@ int lcg_rolling_wheels_jacobian(double t, const double *x, const double *p, doub
     }
     return LCG_OK;
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* M(q) (row-major 1 x 1) and G = dL/dq + Q, for symplectic Euler in p = M u. */
 void lcg_rolling_wheels_momentum(double t, const double *x, const double *p, double *M, double *G)
@@ -354,6 +373,7 @@ void lcg_rolling_wheels_momentum(double t, const double *x, const double *p, dou
     /* G = dL/dq + Q */
     G[0] = tmp0*sin(beta);
 }
+#endif
 
 /* ------------------------------------------------------------------------------------------
  * Integrators: 3 fixed-step schemes, a generic explicit Runge-Kutta stepper
@@ -386,6 +406,7 @@ static int lcg_rolling_wheels_finite(const double *x)
     }
     return 1;
 }
+#if LCG_BUILD_PART != 2
 
 /* classical Runge-Kutta (order 4): one step of x at t, its 4 stage(s) unrolled from the
  * coefficient arrays above; work holds 4 stage derivatives and a stage state. The
@@ -413,6 +434,8 @@ static int lcg_rolling_wheels_rk4_step(double t, double *x, const double *parame
     for (m = 0; m < 2; ++m) x[m] += h * (lcg_rolling_wheels_rk4_b[0] * k[0 + m] + lcg_rolling_wheels_rk4_b[1] * k[2 + m] + lcg_rolling_wheels_rk4_b[2] * k[4 + m] + lcg_rolling_wheels_rk4_b[3] * k[6 + m]);
     return LCG_OK;
 }
+#endif /* LCG_BUILD_PART != 2 */
+#if LCG_BUILD_PART != 1
 
 /* Solve the dense system E d = r (size dim) in place by Gaussian elimination with partial
  * pivoting; E and r are overwritten, d is returned in r. Returns 0 when E is singular. */
@@ -571,7 +594,9 @@ static int lcg_rolling_wheels_symplectic_euler_step(double t, double *x, const d
     for (i = 0; i < 1; ++i) x[1 + i] = momentum[i];
     return LCG_OK;
 }
+#endif /* LCG_BUILD_PART != 1 */
 
+#if LCG_BUILD_PART != 2
 /* classical Runge-Kutta (order 4): advance (t, x) by one step h; work holds 10 values. */
 int lcg_rolling_wheels_step_rk4(double *t, double *x, const double *p, double h, double *work)
 {
@@ -579,7 +604,9 @@ int lcg_rolling_wheels_step_rk4(double *t, double *x, const double *p, double h,
     if (status == LCG_OK) *t += h;
     return status;
 }
+#endif
 
+#if LCG_BUILD_PART != 1
 /* symplectic (semi-implicit) Euler, momentum form (order 1): advance (t, x) by one step h; work holds 10 values. */
 int lcg_rolling_wheels_step_symplectic_euler(double *t, double *x, const double *p, double h, double *work)
 {
@@ -587,7 +614,9 @@ int lcg_rolling_wheels_step_symplectic_euler(double *t, double *x, const double 
     if (status == LCG_OK) *t += h;
     return status;
 }
+#endif
 
+#if LCG_BUILD_PART != 1
 /* implicit midpoint, Gauss s=1 (order 2): advance (t, x) by one step h; work holds 16 values. */
 int lcg_rolling_wheels_step_implicit_midpoint(double *t, double *x, const double *p, double h, double *work)
 {
@@ -595,16 +624,19 @@ int lcg_rolling_wheels_step_implicit_midpoint(double *t, double *x, const double
     if (status == LCG_OK) *t += h;
     return status;
 }
+#endif
+#if LCG_BUILD_PART != 2
 
 /* One step of the method numbered `method`, then the finiteness check of the new state. */
 static int lcg_rolling_wheels_step_any(int method, double t, double *x, const double *p, double h,
                                  double *scratch, int project)
 {
+    double step_t = t;  /* implicit and symplectic steps go through their exported step function */
     int status;
     switch (method) {
     case 0: status = lcg_rolling_wheels_rk4_step(t, x, p, h, scratch); break;
-    case 1: status = lcg_rolling_wheels_symplectic_euler_step(t, x, p, h, scratch); break;
-    case 2: status = lcg_rolling_wheels_irk_step(1, lcg_rolling_wheels_implicit_midpoint_a, lcg_rolling_wheels_implicit_midpoint_b, lcg_rolling_wheels_implicit_midpoint_c, t, x, p, h, scratch); break;
+    case 1: status = lcg_rolling_wheels_step_symplectic_euler(&step_t, x, p, h, scratch); break;
+    case 2: status = lcg_rolling_wheels_step_implicit_midpoint(&step_t, x, p, h, scratch); break;
     default: return LCG_UNKNOWN_METHOD;
     }
     if (status == LCG_OK && !lcg_rolling_wheels_finite(x)) status = LCG_NONFINITE_STATE;
@@ -722,3 +754,4 @@ void lcg_rolling_wheels_sweep(int method, long n_members, const double *x0s, con
         }
     }
 }
+#endif /* LCG_BUILD_PART != 2 */

@@ -9,6 +9,12 @@
 
 #include "lcg_rolling_wheels_f32.h"
 
+/* Left undefined, everything below is compiled. lagcodegen's own build compiles this file twice in
+ * parallel: LCG_BUILD_PART 1 (explicit integrators and the drivers) and 2 (everything else). */
+#ifndef LCG_BUILD_PART
+#define LCG_BUILD_PART 0
+#endif
+
 /* ------------------------------------------------------------------------------------------
  * Inline sine and cosine (printed as lcg_sinf and lcg_cosf): faster than the libm calls
  * because sin and cos of one angle share one argument reduction once inlined, and the
@@ -238,6 +244,7 @@ static int lcg_rolling_wheels_f32_dynamics(float t, const float *x, const float 
 {
     return lcg_rolling_wheels_f32_dynamics_hot(t, x, p, qd, ud);
 }
+#if LCG_BUILD_PART != 1
 
 /* Mass matrix M(q, t), row-major 1 x 1. */
 void lcg_rolling_wheels_f32_mass_matrix(float t, const float *x, const float *p, float *M)
@@ -254,6 +261,8 @@ void lcg_rolling_wheels_f32_mass_matrix(float t, const float *x, const float *p,
     /* Mass matrix, lower triangle, mirrored */
     M[0] = 2*J_2/(r*r) + (2*P + Q_2)/g;  /* M[0][0] */
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Forcing F(q, u, t), 1 values. */
 void lcg_rolling_wheels_f32_forcing(float t, const float *x, const float *p, float *F)
@@ -268,6 +277,8 @@ void lcg_rolling_wheels_f32_forcing(float t, const float *x, const float *p, flo
     /* Forcing */
     F[0] = -(-2*P - Q_2)*sinf(beta);
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Generalized accelerations ud solving M ud = F; returns a status code. */
 int lcg_rolling_wheels_f32_accel(float t, const float *x, const float *p, float *ud)
@@ -275,12 +286,16 @@ int lcg_rolling_wheels_f32_accel(float t, const float *x, const float *p, float 
     float qd[1];
     return lcg_rolling_wheels_f32_dynamics(t, x, p, qd, ud);
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* First-order right-hand side xdot = f(t, x), x = (q, u), 2 values; returns a status code. xdot must not alias x. */
 int lcg_rolling_wheels_f32_rhs(float t, const float *x, const float *p, float *xdot)
 {
     return lcg_rolling_wheels_f32_dynamics(t, x, p, xdot, xdot + 1);
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Total mechanical energy T + V. */
 float lcg_rolling_wheels_f32_energy(float t, const float *x, const float *p)
@@ -300,6 +315,8 @@ float lcg_rolling_wheels_f32_energy(float t, const float *x, const float *p)
     const float tmp1 = 2*P + Q_2;
     return J_2*tmp0/(r*r) - s_2*tmp1*sinf(beta) + (1.0F/2.0F)*tmp0*tmp1/g;
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Jacobian df/dx of the first-order right-hand side, row-major 2 x 2; returns a status code. */
 int lcg_rolling_wheels_f32_jacobian(float t, const float *x, const float *p, float *J)
@@ -338,6 +355,8 @@ int lcg_rolling_wheels_f32_jacobian(float t, const float *x, const float *p, flo
     }
     return LCG_OK;
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* M(q) (row-major 1 x 1) and G = dL/dq + Q, for symplectic Euler in p = M u. */
 void lcg_rolling_wheels_f32_momentum(float t, const float *x, const float *p, float *M, float *G)
@@ -358,6 +377,7 @@ void lcg_rolling_wheels_f32_momentum(float t, const float *x, const float *p, fl
     /* G = dL/dq + Q */
     G[0] = tmp0*sinf(beta);
 }
+#endif
 
 /* ------------------------------------------------------------------------------------------
  * Integrators: 3 fixed-step schemes, a generic explicit Runge-Kutta stepper
@@ -390,6 +410,7 @@ static int lcg_rolling_wheels_f32_finite(const float *x)
     }
     return 1;
 }
+#if LCG_BUILD_PART != 2
 
 /* classical Runge-Kutta (order 4): one step of x at t, its 4 stage(s) unrolled from the
  * coefficient arrays above; work holds 4 stage derivatives and a stage state. The
@@ -417,6 +438,8 @@ static int lcg_rolling_wheels_f32_rk4_step(float t, float *x, const float *param
     for (m = 0; m < 2; ++m) x[m] += h * (lcg_rolling_wheels_f32_rk4_b[0] * k[0 + m] + lcg_rolling_wheels_f32_rk4_b[1] * k[2 + m] + lcg_rolling_wheels_f32_rk4_b[2] * k[4 + m] + lcg_rolling_wheels_f32_rk4_b[3] * k[6 + m]);
     return LCG_OK;
 }
+#endif /* LCG_BUILD_PART != 2 */
+#if LCG_BUILD_PART != 1
 
 /* Solve the dense system E d = r (size dim) in place by Gaussian elimination with partial
  * pivoting; E and r are overwritten, d is returned in r. Returns 0 when E is singular. */
@@ -575,7 +598,9 @@ static int lcg_rolling_wheels_f32_symplectic_euler_step(float t, float *x, const
     for (i = 0; i < 1; ++i) x[1 + i] = momentum[i];
     return LCG_OK;
 }
+#endif /* LCG_BUILD_PART != 1 */
 
+#if LCG_BUILD_PART != 2
 /* classical Runge-Kutta (order 4): advance (t, x) by one step h; work holds 10 values. */
 int lcg_rolling_wheels_f32_step_rk4(float *t, float *x, const float *p, float h, float *work)
 {
@@ -583,7 +608,9 @@ int lcg_rolling_wheels_f32_step_rk4(float *t, float *x, const float *p, float h,
     if (status == LCG_OK) *t += h;
     return status;
 }
+#endif
 
+#if LCG_BUILD_PART != 1
 /* symplectic (semi-implicit) Euler, momentum form (order 1): advance (t, x) by one step h; work holds 10 values. */
 int lcg_rolling_wheels_f32_step_symplectic_euler(float *t, float *x, const float *p, float h, float *work)
 {
@@ -591,7 +618,9 @@ int lcg_rolling_wheels_f32_step_symplectic_euler(float *t, float *x, const float
     if (status == LCG_OK) *t += h;
     return status;
 }
+#endif
 
+#if LCG_BUILD_PART != 1
 /* implicit midpoint, Gauss s=1 (order 2): advance (t, x) by one step h; work holds 16 values. */
 int lcg_rolling_wheels_f32_step_implicit_midpoint(float *t, float *x, const float *p, float h, float *work)
 {
@@ -599,16 +628,19 @@ int lcg_rolling_wheels_f32_step_implicit_midpoint(float *t, float *x, const floa
     if (status == LCG_OK) *t += h;
     return status;
 }
+#endif
+#if LCG_BUILD_PART != 2
 
 /* One step of the method numbered `method`, then the finiteness check of the new state. */
 static int lcg_rolling_wheels_f32_step_any(int method, float t, float *x, const float *p, float h,
                                  float *scratch, int project)
 {
+    float step_t = t;  /* implicit and symplectic steps go through their exported step function */
     int status;
     switch (method) {
     case 0: status = lcg_rolling_wheels_f32_rk4_step(t, x, p, h, scratch); break;
-    case 1: status = lcg_rolling_wheels_f32_symplectic_euler_step(t, x, p, h, scratch); break;
-    case 2: status = lcg_rolling_wheels_f32_irk_step(1, lcg_rolling_wheels_f32_implicit_midpoint_a, lcg_rolling_wheels_f32_implicit_midpoint_b, lcg_rolling_wheels_f32_implicit_midpoint_c, t, x, p, h, scratch); break;
+    case 1: status = lcg_rolling_wheels_f32_step_symplectic_euler(&step_t, x, p, h, scratch); break;
+    case 2: status = lcg_rolling_wheels_f32_step_implicit_midpoint(&step_t, x, p, h, scratch); break;
     default: return LCG_UNKNOWN_METHOD;
     }
     if (status == LCG_OK && !lcg_rolling_wheels_f32_finite(x)) status = LCG_NONFINITE_STATE;
@@ -726,3 +758,4 @@ void lcg_rolling_wheels_f32_sweep(int method, long n_members, const float *x0s, 
         }
     }
 }
+#endif /* LCG_BUILD_PART != 2 */

@@ -9,6 +9,12 @@
 
 #include "lcg_slider_crank.h"
 
+/* Left undefined, everything below is compiled. lagcodegen's own build compiles this file twice in
+ * parallel: LCG_BUILD_PART 1 (explicit integrators and the drivers) and 2 (everything else). */
+#ifndef LCG_BUILD_PART
+#define LCG_BUILD_PART 0
+#endif
+
 /* ------------------------------------------------------------------------------------------
  * Inline sine and cosine (printed as lcg_sin and lcg_cos): faster than the libm calls
  * because sin and cos of one angle share one argument reduction once inlined, and the
@@ -371,6 +377,7 @@ static int lcg_slider_crank_dynamics(double t, const double *x, const double *p,
     double lam[4];
     return lcg_slider_crank_dynamics_constrained(t, x, p, qd, ud, lam, 0);
 }
+#if LCG_BUILD_PART != 1
 
 /* Mass matrix M(q, t), row-major 5 x 5. */
 void lcg_slider_crank_mass_matrix(double t, const double *x, const double *p, double *M)
@@ -411,6 +418,8 @@ void lcg_slider_crank_mass_matrix(double t, const double *x, const double *p, do
     M[19] = M[23];  /* M[3][4] */
     M[24] = m3;  /* M[4][4] */
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Forcing F(q, u, t), 5 values. */
 void lcg_slider_crank_forcing(double t, const double *x, const double *p, double *F)
@@ -431,6 +440,8 @@ void lcg_slider_crank_forcing(double t, const double *x, const double *p, double
     F[3] = 0;
     F[4] = 0;
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Generalized accelerations ud solving M ud = F; returns a status code. */
 int lcg_slider_crank_accel(double t, const double *x, const double *p, double *ud)
@@ -438,12 +449,16 @@ int lcg_slider_crank_accel(double t, const double *x, const double *p, double *u
     double qd[5];
     return lcg_slider_crank_dynamics(t, x, p, qd, ud);
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* First-order right-hand side xdot = f(t, x), x = (q, u), 10 values; returns a status code. xdot must not alias x. */
 int lcg_slider_crank_rhs(double t, const double *x, const double *p, double *xdot)
 {
     return lcg_slider_crank_dynamics(t, x, p, xdot, xdot + 5);
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Total mechanical energy T + V. */
 double lcg_slider_crank_energy(double t, const double *x, const double *p)
@@ -470,6 +485,8 @@ double lcg_slider_crank_energy(double t, const double *x, const double *p)
     const double tmp3 = (1.0/4.0)*tmp2;
     return (1.0/24.0)*(L*L)*m2*(phi_d*phi_d) + g*m2*yc + g*r*tmp0*tmp1 + (1.0/24.0)*m1*tmp2 + (1.0/2.0)*m2*(xc_d*xc_d + yc_d*yc_d) + (1.0/2.0)*m3*(s_d*s_d) + tmp1*((tmp0*tmp0)*tmp3 + tmp3*(cos(theta)*cos(theta)));
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Positions of 3 named points, 3 values each. */
 void lcg_slider_crank_points(double t, const double *x, const double *p, double *out)
@@ -493,6 +510,8 @@ void lcg_slider_crank_points(double t, const double *x, const double *p, double 
     out[7] = 0;  /* slider.y */
     out[8] = 0;  /* slider.z */
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Constraints phi (4), their Jacobian A = dphi/dq (row-major 4 x 5) and dphi/dt (4). */
 void lcg_slider_crank_constraint_terms(double t, const double *x, const double *p, double *phi, double *A, double *phi_t)
@@ -542,6 +561,8 @@ void lcg_slider_crank_constraint_terms(double t, const double *x, const double *
     phi_t[2] = 0;
     phi_t[3] = 0;
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Multipliers lam (4) and generalized constraint forces Q = A^T lam (5, or NULL): M ud = F - A^T lam. */
 int lcg_slider_crank_multipliers(double t, const double *x, const double *p, double *lam, double *Q)
@@ -549,6 +570,8 @@ int lcg_slider_crank_multipliers(double t, const double *x, const double *p, dou
     double qd[5], ud[5];
     return lcg_slider_crank_dynamics_constrained(t, x, p, qd, ud, lam, Q);
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Constraint residuals at x: out[i] = phi_i (position level), out[4 + i] = (A u + dphi/dt)_i
  * (velocity level), 4 each. */
@@ -563,6 +586,7 @@ void lcg_slider_crank_residuals(double t, const double *x, const double *p, doub
         out[4 + i] = acc;
     }
 }
+#endif
 
 /* Minimum-norm correction: solve (A A^T) y = b, then v -= A^T y. Returns 0 when A has lost rank. */
 static int lcg_slider_crank_project_onto(const double *A, double *b, double *v)
@@ -586,6 +610,7 @@ static int lcg_slider_crank_project_onto(const double *A, double *b, double *v)
     return 1;
 }
 
+#if LCG_BUILD_PART != 1
 /* Project x back onto the constraint manifold at time t: Gauss-Newton on phi(q, t) = 0 with
  * minimum-norm steps (at most 10, until max |phi| <= 1e-12), then the
  * speeds onto A u + dphi/dt = 0. Returns a status code. */
@@ -612,6 +637,7 @@ int lcg_slider_crank_project(double t, double *x, const double *p)
     if (!lcg_slider_crank_project_onto(A, phi, x + 5)) return LCG_SINGULAR_CONSTRAINTS;
     return LCG_OK;
 }
+#endif
 
 /* ------------------------------------------------------------------------------------------
  * Integrators: 1 fixed-step schemes, a generic explicit Runge-Kutta stepper
@@ -637,6 +663,7 @@ static int lcg_slider_crank_finite(const double *x)
     }
     return 1;
 }
+#if LCG_BUILD_PART != 2
 
 /* classical Runge-Kutta (order 4): one step of x at t, its 4 stage(s) unrolled from the
  * coefficient arrays above; work holds 4 stage derivatives and a stage state. The
@@ -664,7 +691,11 @@ static int lcg_slider_crank_rk4_step(double t, double *x, const double *paramete
     for (m = 0; m < 10; ++m) x[m] += h * (lcg_slider_crank_rk4_b[0] * k[0 + m] + lcg_slider_crank_rk4_b[1] * k[10 + m] + lcg_slider_crank_rk4_b[2] * k[20 + m] + lcg_slider_crank_rk4_b[3] * k[30 + m]);
     return LCG_OK;
 }
+#endif /* LCG_BUILD_PART != 2 */
+#if LCG_BUILD_PART != 1
+#endif /* LCG_BUILD_PART != 1 */
 
+#if LCG_BUILD_PART != 2
 /* classical Runge-Kutta (order 4): advance (t, x) by one step h; work holds 50 values. */
 int lcg_slider_crank_step_rk4(double *t, double *x, const double *p, double h, double *work)
 {
@@ -672,6 +703,8 @@ int lcg_slider_crank_step_rk4(double *t, double *x, const double *p, double h, d
     if (status == LCG_OK) *t += h;
     return status;
 }
+#endif
+#if LCG_BUILD_PART != 2
 
 /* One step of the method numbered `method`, then the finiteness check of the new state. */
 static int lcg_slider_crank_step_any(int method, double t, double *x, const double *p, double h,
@@ -806,3 +839,4 @@ void lcg_slider_crank_sweep(int method, long n_members, const double *x0s, const
         }
     }
 }
+#endif /* LCG_BUILD_PART != 2 */

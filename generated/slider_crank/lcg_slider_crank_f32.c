@@ -9,6 +9,12 @@
 
 #include "lcg_slider_crank_f32.h"
 
+/* Left undefined, everything below is compiled. lagcodegen's own build compiles this file twice in
+ * parallel: LCG_BUILD_PART 1 (explicit integrators and the drivers) and 2 (everything else). */
+#ifndef LCG_BUILD_PART
+#define LCG_BUILD_PART 0
+#endif
+
 /* ------------------------------------------------------------------------------------------
  * Inline sine and cosine (printed as lcg_sinf and lcg_cosf): faster than the libm calls
  * because sin and cos of one angle share one argument reduction once inlined, and the
@@ -375,6 +381,7 @@ static int lcg_slider_crank_f32_dynamics(float t, const float *x, const float *p
     float lam[4];
     return lcg_slider_crank_f32_dynamics_constrained(t, x, p, qd, ud, lam, 0);
 }
+#if LCG_BUILD_PART != 1
 
 /* Mass matrix M(q, t), row-major 5 x 5. */
 void lcg_slider_crank_f32_mass_matrix(float t, const float *x, const float *p, float *M)
@@ -415,6 +422,8 @@ void lcg_slider_crank_f32_mass_matrix(float t, const float *x, const float *p, f
     M[19] = M[23];  /* M[3][4] */
     M[24] = m3;  /* M[4][4] */
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Forcing F(q, u, t), 5 values. */
 void lcg_slider_crank_f32_forcing(float t, const float *x, const float *p, float *F)
@@ -435,6 +444,8 @@ void lcg_slider_crank_f32_forcing(float t, const float *x, const float *p, float
     F[3] = 0;
     F[4] = 0;
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Generalized accelerations ud solving M ud = F; returns a status code. */
 int lcg_slider_crank_f32_accel(float t, const float *x, const float *p, float *ud)
@@ -442,12 +453,16 @@ int lcg_slider_crank_f32_accel(float t, const float *x, const float *p, float *u
     float qd[5];
     return lcg_slider_crank_f32_dynamics(t, x, p, qd, ud);
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* First-order right-hand side xdot = f(t, x), x = (q, u), 10 values; returns a status code. xdot must not alias x. */
 int lcg_slider_crank_f32_rhs(float t, const float *x, const float *p, float *xdot)
 {
     return lcg_slider_crank_f32_dynamics(t, x, p, xdot, xdot + 5);
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Total mechanical energy T + V. */
 float lcg_slider_crank_f32_energy(float t, const float *x, const float *p)
@@ -474,6 +489,8 @@ float lcg_slider_crank_f32_energy(float t, const float *x, const float *p)
     const float tmp3 = (1.0F/4.0F)*tmp2;
     return (1.0F/24.0F)*(L*L)*m2*(phi_d*phi_d) + g*m2*yc + g*r*tmp0*tmp1 + (1.0F/24.0F)*m1*tmp2 + (1.0F/2.0F)*m2*(xc_d*xc_d + yc_d*yc_d) + (1.0F/2.0F)*m3*(s_d*s_d) + tmp1*((tmp0*tmp0)*tmp3 + tmp3*(cosf(theta)*cosf(theta)));
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Positions of 3 named points, 3 values each. */
 void lcg_slider_crank_f32_points(float t, const float *x, const float *p, float *out)
@@ -497,6 +514,8 @@ void lcg_slider_crank_f32_points(float t, const float *x, const float *p, float 
     out[7] = 0;  /* slider.y */
     out[8] = 0;  /* slider.z */
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Constraints phi (4), their Jacobian A = dphi/dq (row-major 4 x 5) and dphi/dt (4). */
 void lcg_slider_crank_f32_constraint_terms(float t, const float *x, const float *p, float *phi, float *A, float *phi_t)
@@ -546,6 +565,8 @@ void lcg_slider_crank_f32_constraint_terms(float t, const float *x, const float 
     phi_t[2] = 0;
     phi_t[3] = 0;
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Multipliers lam (4) and generalized constraint forces Q = A^T lam (5, or NULL): M ud = F - A^T lam. */
 int lcg_slider_crank_f32_multipliers(float t, const float *x, const float *p, float *lam, float *Q)
@@ -553,6 +574,8 @@ int lcg_slider_crank_f32_multipliers(float t, const float *x, const float *p, fl
     float qd[5], ud[5];
     return lcg_slider_crank_f32_dynamics_constrained(t, x, p, qd, ud, lam, Q);
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Constraint residuals at x: out[i] = phi_i (position level), out[4 + i] = (A u + dphi/dt)_i
  * (velocity level), 4 each. */
@@ -567,6 +590,7 @@ void lcg_slider_crank_f32_residuals(float t, const float *x, const float *p, flo
         out[4 + i] = acc;
     }
 }
+#endif
 
 /* Minimum-norm correction: solve (A A^T) y = b, then v -= A^T y. Returns 0 when A has lost rank. */
 static int lcg_slider_crank_f32_project_onto(const float *A, float *b, float *v)
@@ -590,6 +614,7 @@ static int lcg_slider_crank_f32_project_onto(const float *A, float *b, float *v)
     return 1;
 }
 
+#if LCG_BUILD_PART != 1
 /* Project x back onto the constraint manifold at time t: Gauss-Newton on phi(q, t) = 0 with
  * minimum-norm steps (at most 10, until max |phi| <= 1e-06F), then the
  * speeds onto A u + dphi/dt = 0. Returns a status code. */
@@ -616,6 +641,7 @@ int lcg_slider_crank_f32_project(float t, float *x, const float *p)
     if (!lcg_slider_crank_f32_project_onto(A, phi, x + 5)) return LCG_SINGULAR_CONSTRAINTS;
     return LCG_OK;
 }
+#endif
 
 /* ------------------------------------------------------------------------------------------
  * Integrators: 1 fixed-step schemes, a generic explicit Runge-Kutta stepper
@@ -641,6 +667,7 @@ static int lcg_slider_crank_f32_finite(const float *x)
     }
     return 1;
 }
+#if LCG_BUILD_PART != 2
 
 /* classical Runge-Kutta (order 4): one step of x at t, its 4 stage(s) unrolled from the
  * coefficient arrays above; work holds 4 stage derivatives and a stage state. The
@@ -668,7 +695,11 @@ static int lcg_slider_crank_f32_rk4_step(float t, float *x, const float *paramet
     for (m = 0; m < 10; ++m) x[m] += h * (lcg_slider_crank_f32_rk4_b[0] * k[0 + m] + lcg_slider_crank_f32_rk4_b[1] * k[10 + m] + lcg_slider_crank_f32_rk4_b[2] * k[20 + m] + lcg_slider_crank_f32_rk4_b[3] * k[30 + m]);
     return LCG_OK;
 }
+#endif /* LCG_BUILD_PART != 2 */
+#if LCG_BUILD_PART != 1
+#endif /* LCG_BUILD_PART != 1 */
 
+#if LCG_BUILD_PART != 2
 /* classical Runge-Kutta (order 4): advance (t, x) by one step h; work holds 50 values. */
 int lcg_slider_crank_f32_step_rk4(float *t, float *x, const float *p, float h, float *work)
 {
@@ -676,6 +707,8 @@ int lcg_slider_crank_f32_step_rk4(float *t, float *x, const float *p, float h, f
     if (status == LCG_OK) *t += h;
     return status;
 }
+#endif
+#if LCG_BUILD_PART != 2
 
 /* One step of the method numbered `method`, then the finiteness check of the new state. */
 static int lcg_slider_crank_f32_step_any(int method, float t, float *x, const float *p, float h,
@@ -810,3 +843,4 @@ void lcg_slider_crank_f32_sweep(int method, long n_members, const float *x0s, co
         }
     }
 }
+#endif /* LCG_BUILD_PART != 2 */

@@ -9,6 +9,12 @@
 
 #include "lcg_slider_crank_minimal.h"
 
+/* Left undefined, everything below is compiled. lagcodegen's own build compiles this file twice in
+ * parallel: LCG_BUILD_PART 1 (explicit integrators and the drivers) and 2 (everything else). */
+#ifndef LCG_BUILD_PART
+#define LCG_BUILD_PART 0
+#endif
+
 /* ------------------------------------------------------------------------------------------
  * Inline sine and cosine (printed as lcg_sin and lcg_cos): faster than the libm calls
  * because sin and cos of one angle share one argument reduction once inlined, and the
@@ -248,6 +254,7 @@ static int lcg_slider_crank_minimal_dynamics(double t, const double *x, const do
     ud[0] = w_0;
     return LCG_OK;
 }
+#if LCG_BUILD_PART != 1
 
 /* Mass matrix M(q, t), row-major 1 x 1. */
 void lcg_slider_crank_minimal_mass_matrix(double t, const double *x, const double *p, double *M)
@@ -274,6 +281,8 @@ void lcg_slider_crank_minimal_mass_matrix(double t, const double *x, const doubl
     /* Mass matrix, lower triangle, mirrored */
     M[0] = (1.0/3.0)*m1*tmp0 + (r*r*r*r)*tmp3*tmp5*tmp7*tmp9*(m2 + 4*m3) + (1.0/12.0)*tmp2*tmp4*tmp9 + tmp3*tmp4 + tmp6*(m2 + m3) + (r*r*r)*tmp1*tmp5*(m2 + 2*m3)/(L*sqrt(tmp8));  /* M[0][0] */
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Forcing F(q, u, t), 1 values. */
 void lcg_slider_crank_minimal_forcing(double t, const double *x, const double *p, double *F)
@@ -312,6 +321,8 @@ void lcg_slider_crank_minimal_forcing(double t, const double *x, const double *p
     /* Forcing */
     F[0] = -g*(m1*tmp1 + m2*tmp1) + tau + (theta_d*theta_d)*((1.0/12.0)*m2*tmp0*tmp2*tmp3*tmp6 + (1.0/4.0)*m2*tmp0*tmp2*tmp3 - (1.0/12.0)*m2*tmp10*tmp8 + (1.0/4.0)*tmp0*tmp13*tmp17*tmp4*tmp6*tmp9 - tmp0*tmp2*tmp3*(m2 + m3) - tmp10*tmp18*tmp6*tmp7 + (1.0/2.0)*tmp11*tmp12*tmp13*tmp14*tmp15 - tmp11*tmp12*tmp14*tmp15*tmp16*tmp2 - (1.0/2.0)*pow(r, 5)*tmp13*tmp14*tmp16/((L*L*L)*pow(tmp5, (3.0/2.0))) - pow(r, 6)*tmp13*tmp18*tmp8/(L*L*L*L));
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Generalized accelerations ud solving M ud = F; returns a status code. */
 int lcg_slider_crank_minimal_accel(double t, const double *x, const double *p, double *ud)
@@ -319,12 +330,16 @@ int lcg_slider_crank_minimal_accel(double t, const double *x, const double *p, d
     double qd[1];
     return lcg_slider_crank_minimal_dynamics(t, x, p, qd, ud);
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* First-order right-hand side xdot = f(t, x), x = (q, u), 2 values; returns a status code. xdot must not alias x. */
 int lcg_slider_crank_minimal_rhs(double t, const double *x, const double *p, double *xdot)
 {
     return lcg_slider_crank_minimal_dynamics(t, x, p, xdot, xdot + 1);
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Total mechanical energy T + V. */
 double lcg_slider_crank_minimal_energy(double t, const double *x, const double *p)
@@ -352,6 +367,8 @@ double lcg_slider_crank_minimal_energy(double t, const double *x, const double *
     const double tmp9 = theta_d*tmp0*tmp2*tmp6/(L*sqrt(tmp5));
     return g*((1.0/2.0)*m1*tmp3 + tmp3*tmp4) + (1.0/6.0)*m1*tmp1 + (1.0/24.0)*m2*tmp7/tmp5 + (1.0/2.0)*m3*((-tmp8 - tmp9)*(-tmp8 - tmp9)) + tmp4*((1.0/4.0)*tmp7 + (-tmp8 - (1.0/2.0)*tmp9)*(-tmp8 - (1.0/2.0)*tmp9));
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Positions of 3 named points, 3 values each. */
 void lcg_slider_crank_minimal_points(double t, const double *x, const double *p, double *out)
@@ -377,6 +394,8 @@ void lcg_slider_crank_minimal_points(double t, const double *x, const double *p,
     out[7] = 0;  /* slider.y */
     out[8] = 0;  /* slider.z */
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Jacobian df/dx of the first-order right-hand side, row-major 2 x 2; returns a status code. */
 int lcg_slider_crank_minimal_jacobian(double t, const double *x, const double *p, double *J)
@@ -476,6 +495,8 @@ int lcg_slider_crank_minimal_jacobian(double t, const double *x, const double *p
     }
     return LCG_OK;
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* M(q) (row-major 1 x 1) and G = dL/dq + Q, for symplectic Euler in p = M u. */
 void lcg_slider_crank_minimal_momentum(double t, const double *x, const double *p, double *M, double *G)
@@ -536,6 +557,7 @@ void lcg_slider_crank_minimal_momentum(double t, const double *x, const double *
     /* G = dL/dq + Q */
     G[0] = -g*(m1*tmp24 + m2*tmp24) + tau + tmp25*(-(1.0/2.0)*tmp1*tmp26 - (1.0/6.0)*tmp12*tmp26 - tmp17*tmp32 - tmp22*tmp23*tmp31 + 2*tmp27 + (1.0/6.0)*tmp30 + tmp33*tmp34 + tmp34*tmp37 + 2*tmp35 + tmp36) + tmp25*((1.0/12.0)*m2*tmp0*tmp11*tmp2*tmp6 + (1.0/4.0)*m2*tmp0*tmp2*tmp6 + (1.0/4.0)*tmp11*tmp19*tmp2*tmp20*tmp31*tmp9 + (1.0/2.0)*tmp13*tmp14*tmp15*tmp16*tmp31 - tmp27 - (1.0/12.0)*tmp30 - tmp33*tmp38 - tmp35 - (1.0/2.0)*tmp36 - tmp37*tmp38);
 }
+#endif
 
 /* ------------------------------------------------------------------------------------------
  * Integrators: 3 fixed-step schemes, a generic explicit Runge-Kutta stepper
@@ -568,6 +590,7 @@ static int lcg_slider_crank_minimal_finite(const double *x)
     }
     return 1;
 }
+#if LCG_BUILD_PART != 2
 
 /* classical Runge-Kutta (order 4): one step of x at t, its 4 stage(s) unrolled from the
  * coefficient arrays above; work holds 4 stage derivatives and a stage state. The
@@ -595,6 +618,8 @@ static int lcg_slider_crank_minimal_rk4_step(double t, double *x, const double *
     for (m = 0; m < 2; ++m) x[m] += h * (lcg_slider_crank_minimal_rk4_b[0] * k[0 + m] + lcg_slider_crank_minimal_rk4_b[1] * k[2 + m] + lcg_slider_crank_minimal_rk4_b[2] * k[4 + m] + lcg_slider_crank_minimal_rk4_b[3] * k[6 + m]);
     return LCG_OK;
 }
+#endif /* LCG_BUILD_PART != 2 */
+#if LCG_BUILD_PART != 1
 
 /* Solve the dense system E d = r (size dim) in place by Gaussian elimination with partial
  * pivoting; E and r are overwritten, d is returned in r. Returns 0 when E is singular. */
@@ -753,7 +778,9 @@ static int lcg_slider_crank_minimal_symplectic_euler_step(double t, double *x, c
     for (i = 0; i < 1; ++i) x[1 + i] = momentum[i];
     return LCG_OK;
 }
+#endif /* LCG_BUILD_PART != 1 */
 
+#if LCG_BUILD_PART != 2
 /* classical Runge-Kutta (order 4): advance (t, x) by one step h; work holds 10 values. */
 int lcg_slider_crank_minimal_step_rk4(double *t, double *x, const double *p, double h, double *work)
 {
@@ -761,7 +788,9 @@ int lcg_slider_crank_minimal_step_rk4(double *t, double *x, const double *p, dou
     if (status == LCG_OK) *t += h;
     return status;
 }
+#endif
 
+#if LCG_BUILD_PART != 1
 /* symplectic (semi-implicit) Euler, momentum form (order 1): advance (t, x) by one step h; work holds 10 values. */
 int lcg_slider_crank_minimal_step_symplectic_euler(double *t, double *x, const double *p, double h, double *work)
 {
@@ -769,7 +798,9 @@ int lcg_slider_crank_minimal_step_symplectic_euler(double *t, double *x, const d
     if (status == LCG_OK) *t += h;
     return status;
 }
+#endif
 
+#if LCG_BUILD_PART != 1
 /* implicit midpoint, Gauss s=1 (order 2): advance (t, x) by one step h; work holds 16 values. */
 int lcg_slider_crank_minimal_step_implicit_midpoint(double *t, double *x, const double *p, double h, double *work)
 {
@@ -777,16 +808,19 @@ int lcg_slider_crank_minimal_step_implicit_midpoint(double *t, double *x, const 
     if (status == LCG_OK) *t += h;
     return status;
 }
+#endif
+#if LCG_BUILD_PART != 2
 
 /* One step of the method numbered `method`, then the finiteness check of the new state. */
 static int lcg_slider_crank_minimal_step_any(int method, double t, double *x, const double *p, double h,
                                  double *scratch, int project)
 {
+    double step_t = t;  /* implicit and symplectic steps go through their exported step function */
     int status;
     switch (method) {
     case 0: status = lcg_slider_crank_minimal_rk4_step(t, x, p, h, scratch); break;
-    case 1: status = lcg_slider_crank_minimal_symplectic_euler_step(t, x, p, h, scratch); break;
-    case 2: status = lcg_slider_crank_minimal_irk_step(1, lcg_slider_crank_minimal_implicit_midpoint_a, lcg_slider_crank_minimal_implicit_midpoint_b, lcg_slider_crank_minimal_implicit_midpoint_c, t, x, p, h, scratch); break;
+    case 1: status = lcg_slider_crank_minimal_step_symplectic_euler(&step_t, x, p, h, scratch); break;
+    case 2: status = lcg_slider_crank_minimal_step_implicit_midpoint(&step_t, x, p, h, scratch); break;
     default: return LCG_UNKNOWN_METHOD;
     }
     if (status == LCG_OK && !lcg_slider_crank_minimal_finite(x)) status = LCG_NONFINITE_STATE;
@@ -904,3 +938,4 @@ void lcg_slider_crank_minimal_sweep(int method, long n_members, const double *x0
         }
     }
 }
+#endif /* LCG_BUILD_PART != 2 */

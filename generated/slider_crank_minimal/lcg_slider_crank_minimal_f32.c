@@ -9,6 +9,12 @@
 
 #include "lcg_slider_crank_minimal_f32.h"
 
+/* Left undefined, everything below is compiled. lagcodegen's own build compiles this file twice in
+ * parallel: LCG_BUILD_PART 1 (explicit integrators and the drivers) and 2 (everything else). */
+#ifndef LCG_BUILD_PART
+#define LCG_BUILD_PART 0
+#endif
+
 /* ------------------------------------------------------------------------------------------
  * Inline sine and cosine (printed as lcg_sinf and lcg_cosf): faster than the libm calls
  * because sin and cos of one angle share one argument reduction once inlined, and the
@@ -252,6 +258,7 @@ static int lcg_slider_crank_minimal_f32_dynamics(float t, const float *x, const 
     ud[0] = w_0;
     return LCG_OK;
 }
+#if LCG_BUILD_PART != 1
 
 /* Mass matrix M(q, t), row-major 1 x 1. */
 void lcg_slider_crank_minimal_f32_mass_matrix(float t, const float *x, const float *p, float *M)
@@ -278,6 +285,8 @@ void lcg_slider_crank_minimal_f32_mass_matrix(float t, const float *x, const flo
     /* Mass matrix, lower triangle, mirrored */
     M[0] = (1.0F/3.0F)*m1*tmp0 + (r*r*r*r)*tmp3*tmp5*tmp7*tmp9*(m2 + 4*m3) + (1.0F/12.0F)*tmp2*tmp4*tmp9 + tmp3*tmp4 + tmp6*(m2 + m3) + (r*r*r)*tmp1*tmp5*(m2 + 2*m3)/(L*sqrtf(tmp8));  /* M[0][0] */
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Forcing F(q, u, t), 1 values. */
 void lcg_slider_crank_minimal_f32_forcing(float t, const float *x, const float *p, float *F)
@@ -316,6 +325,8 @@ void lcg_slider_crank_minimal_f32_forcing(float t, const float *x, const float *
     /* Forcing */
     F[0] = -g*(m1*tmp1 + m2*tmp1) + tau + (theta_d*theta_d)*((1.0F/12.0F)*m2*tmp0*tmp2*tmp3*tmp6 + (1.0F/4.0F)*m2*tmp0*tmp2*tmp3 - (1.0F/12.0F)*m2*tmp10*tmp8 + (1.0F/4.0F)*tmp0*tmp13*tmp17*tmp4*tmp6*tmp9 - tmp0*tmp2*tmp3*(m2 + m3) - tmp10*tmp18*tmp6*tmp7 + (1.0F/2.0F)*tmp11*tmp12*tmp13*tmp14*tmp15 - tmp11*tmp12*tmp14*tmp15*tmp16*tmp2 - (1.0F/2.0F)*powf(r, 5)*tmp13*tmp14*tmp16/((L*L*L)*powf(tmp5, (3.0F/2.0F))) - powf(r, 6)*tmp13*tmp18*tmp8/(L*L*L*L));
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Generalized accelerations ud solving M ud = F; returns a status code. */
 int lcg_slider_crank_minimal_f32_accel(float t, const float *x, const float *p, float *ud)
@@ -323,12 +334,16 @@ int lcg_slider_crank_minimal_f32_accel(float t, const float *x, const float *p, 
     float qd[1];
     return lcg_slider_crank_minimal_f32_dynamics(t, x, p, qd, ud);
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* First-order right-hand side xdot = f(t, x), x = (q, u), 2 values; returns a status code. xdot must not alias x. */
 int lcg_slider_crank_minimal_f32_rhs(float t, const float *x, const float *p, float *xdot)
 {
     return lcg_slider_crank_minimal_f32_dynamics(t, x, p, xdot, xdot + 1);
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Total mechanical energy T + V. */
 float lcg_slider_crank_minimal_f32_energy(float t, const float *x, const float *p)
@@ -356,6 +371,8 @@ float lcg_slider_crank_minimal_f32_energy(float t, const float *x, const float *
     const float tmp9 = theta_d*tmp0*tmp2*tmp6/(L*sqrtf(tmp5));
     return g*((1.0F/2.0F)*m1*tmp3 + tmp3*tmp4) + (1.0F/6.0F)*m1*tmp1 + (1.0F/24.0F)*m2*tmp7/tmp5 + (1.0F/2.0F)*m3*((-tmp8 - tmp9)*(-tmp8 - tmp9)) + tmp4*((1.0F/4.0F)*tmp7 + (-tmp8 - (1.0F/2.0F)*tmp9)*(-tmp8 - (1.0F/2.0F)*tmp9));
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Positions of 3 named points, 3 values each. */
 void lcg_slider_crank_minimal_f32_points(float t, const float *x, const float *p, float *out)
@@ -381,6 +398,8 @@ void lcg_slider_crank_minimal_f32_points(float t, const float *x, const float *p
     out[7] = 0;  /* slider.y */
     out[8] = 0;  /* slider.z */
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Jacobian df/dx of the first-order right-hand side, row-major 2 x 2; returns a status code. */
 int lcg_slider_crank_minimal_f32_jacobian(float t, const float *x, const float *p, float *J)
@@ -480,6 +499,8 @@ int lcg_slider_crank_minimal_f32_jacobian(float t, const float *x, const float *
     }
     return LCG_OK;
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* M(q) (row-major 1 x 1) and G = dL/dq + Q, for symplectic Euler in p = M u. */
 void lcg_slider_crank_minimal_f32_momentum(float t, const float *x, const float *p, float *M, float *G)
@@ -540,6 +561,7 @@ void lcg_slider_crank_minimal_f32_momentum(float t, const float *x, const float 
     /* G = dL/dq + Q */
     G[0] = -g*(m1*tmp24 + m2*tmp24) + tau + tmp25*(-(1.0F/2.0F)*tmp1*tmp26 - (1.0F/6.0F)*tmp12*tmp26 - tmp17*tmp32 - tmp22*tmp23*tmp31 + 2*tmp27 + (1.0F/6.0F)*tmp30 + tmp33*tmp34 + tmp34*tmp37 + 2*tmp35 + tmp36) + tmp25*((1.0F/12.0F)*m2*tmp0*tmp11*tmp2*tmp6 + (1.0F/4.0F)*m2*tmp0*tmp2*tmp6 + (1.0F/4.0F)*tmp11*tmp19*tmp2*tmp20*tmp31*tmp9 + (1.0F/2.0F)*tmp13*tmp14*tmp15*tmp16*tmp31 - tmp27 - (1.0F/12.0F)*tmp30 - tmp33*tmp38 - tmp35 - (1.0F/2.0F)*tmp36 - tmp37*tmp38);
 }
+#endif
 
 /* ------------------------------------------------------------------------------------------
  * Integrators: 3 fixed-step schemes, a generic explicit Runge-Kutta stepper
@@ -572,6 +594,7 @@ static int lcg_slider_crank_minimal_f32_finite(const float *x)
     }
     return 1;
 }
+#if LCG_BUILD_PART != 2
 
 /* classical Runge-Kutta (order 4): one step of x at t, its 4 stage(s) unrolled from the
  * coefficient arrays above; work holds 4 stage derivatives and a stage state. The
@@ -599,6 +622,8 @@ static int lcg_slider_crank_minimal_f32_rk4_step(float t, float *x, const float 
     for (m = 0; m < 2; ++m) x[m] += h * (lcg_slider_crank_minimal_f32_rk4_b[0] * k[0 + m] + lcg_slider_crank_minimal_f32_rk4_b[1] * k[2 + m] + lcg_slider_crank_minimal_f32_rk4_b[2] * k[4 + m] + lcg_slider_crank_minimal_f32_rk4_b[3] * k[6 + m]);
     return LCG_OK;
 }
+#endif /* LCG_BUILD_PART != 2 */
+#if LCG_BUILD_PART != 1
 
 /* Solve the dense system E d = r (size dim) in place by Gaussian elimination with partial
  * pivoting; E and r are overwritten, d is returned in r. Returns 0 when E is singular. */
@@ -757,7 +782,9 @@ static int lcg_slider_crank_minimal_f32_symplectic_euler_step(float t, float *x,
     for (i = 0; i < 1; ++i) x[1 + i] = momentum[i];
     return LCG_OK;
 }
+#endif /* LCG_BUILD_PART != 1 */
 
+#if LCG_BUILD_PART != 2
 /* classical Runge-Kutta (order 4): advance (t, x) by one step h; work holds 10 values. */
 int lcg_slider_crank_minimal_f32_step_rk4(float *t, float *x, const float *p, float h, float *work)
 {
@@ -765,7 +792,9 @@ int lcg_slider_crank_minimal_f32_step_rk4(float *t, float *x, const float *p, fl
     if (status == LCG_OK) *t += h;
     return status;
 }
+#endif
 
+#if LCG_BUILD_PART != 1
 /* symplectic (semi-implicit) Euler, momentum form (order 1): advance (t, x) by one step h; work holds 10 values. */
 int lcg_slider_crank_minimal_f32_step_symplectic_euler(float *t, float *x, const float *p, float h, float *work)
 {
@@ -773,7 +802,9 @@ int lcg_slider_crank_minimal_f32_step_symplectic_euler(float *t, float *x, const
     if (status == LCG_OK) *t += h;
     return status;
 }
+#endif
 
+#if LCG_BUILD_PART != 1
 /* implicit midpoint, Gauss s=1 (order 2): advance (t, x) by one step h; work holds 16 values. */
 int lcg_slider_crank_minimal_f32_step_implicit_midpoint(float *t, float *x, const float *p, float h, float *work)
 {
@@ -781,16 +812,19 @@ int lcg_slider_crank_minimal_f32_step_implicit_midpoint(float *t, float *x, cons
     if (status == LCG_OK) *t += h;
     return status;
 }
+#endif
+#if LCG_BUILD_PART != 2
 
 /* One step of the method numbered `method`, then the finiteness check of the new state. */
 static int lcg_slider_crank_minimal_f32_step_any(int method, float t, float *x, const float *p, float h,
                                  float *scratch, int project)
 {
+    float step_t = t;  /* implicit and symplectic steps go through their exported step function */
     int status;
     switch (method) {
     case 0: status = lcg_slider_crank_minimal_f32_rk4_step(t, x, p, h, scratch); break;
-    case 1: status = lcg_slider_crank_minimal_f32_symplectic_euler_step(t, x, p, h, scratch); break;
-    case 2: status = lcg_slider_crank_minimal_f32_irk_step(1, lcg_slider_crank_minimal_f32_implicit_midpoint_a, lcg_slider_crank_minimal_f32_implicit_midpoint_b, lcg_slider_crank_minimal_f32_implicit_midpoint_c, t, x, p, h, scratch); break;
+    case 1: status = lcg_slider_crank_minimal_f32_step_symplectic_euler(&step_t, x, p, h, scratch); break;
+    case 2: status = lcg_slider_crank_minimal_f32_step_implicit_midpoint(&step_t, x, p, h, scratch); break;
     default: return LCG_UNKNOWN_METHOD;
     }
     if (status == LCG_OK && !lcg_slider_crank_minimal_f32_finite(x)) status = LCG_NONFINITE_STATE;
@@ -908,3 +942,4 @@ void lcg_slider_crank_minimal_f32_sweep(int method, long n_members, const float 
         }
     }
 }
+#endif /* LCG_BUILD_PART != 2 */

@@ -9,6 +9,12 @@
 
 #include "lcg_stiff_chain.h"
 
+/* Left undefined, everything below is compiled. lagcodegen's own build compiles this file twice in
+ * parallel: LCG_BUILD_PART 1 (explicit integrators and the drivers) and 2 (everything else). */
+#ifndef LCG_BUILD_PART
+#define LCG_BUILD_PART 0
+#endif
+
 #ifndef LCG_HOT_INLINE
 #ifdef __GNUC__  /* the compiler's own heuristics keep the call: force it, for small kernels only */
 #define LCG_HOT_INLINE inline __attribute__((always_inline))
@@ -127,6 +133,7 @@ static int lcg_stiff_chain_dynamics(double t, const double *x, const double *p, 
 {
     return lcg_stiff_chain_dynamics_hot(t, x, p, qd, ud);
 }
+#if LCG_BUILD_PART != 1
 
 /* Mass matrix M(q, t), row-major 3 x 3. */
 void lcg_stiff_chain_mass_matrix(double t, const double *x, const double *p, double *M)
@@ -149,6 +156,8 @@ void lcg_stiff_chain_mass_matrix(double t, const double *x, const double *p, dou
     M[5] = M[7];  /* M[1][2] */
     M[8] = m3;  /* M[2][2] */
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Forcing F(q, u, t), 3 values. */
 void lcg_stiff_chain_forcing(double t, const double *x, const double *p, double *F)
@@ -171,6 +180,8 @@ void lcg_stiff_chain_forcing(double t, const double *x, const double *p, double 
     F[1] = tmp1*tmp2 - tmp3*tmp4;
     F[2] = -k_2*x3 + tmp3*tmp4;
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Generalized accelerations ud solving M ud = F; returns a status code. */
 int lcg_stiff_chain_accel(double t, const double *x, const double *p, double *ud)
@@ -178,12 +189,16 @@ int lcg_stiff_chain_accel(double t, const double *x, const double *p, double *ud
     double qd[3];
     return lcg_stiff_chain_dynamics(t, x, p, qd, ud);
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* First-order right-hand side xdot = f(t, x), x = (q, u), 6 values; returns a status code. xdot must not alias x. */
 int lcg_stiff_chain_rhs(double t, const double *x, const double *p, double *xdot)
 {
     return lcg_stiff_chain_dynamics(t, x, p, xdot, xdot + 3);
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Total mechanical energy T + V. */
 double lcg_stiff_chain_energy(double t, const double *x, const double *p)
@@ -205,6 +220,8 @@ double lcg_stiff_chain_energy(double t, const double *x, const double *p)
     const double tmp0 = (1.0/2.0)*k_2;
     return (1.0/2.0)*K*((-x2 + x3)*(-x2 + x3)) + (1.0/2.0)*m1*(x1_d*x1_d) + (1.0/2.0)*m2*(x2_d*x2_d) + (1.0/2.0)*m3*(x3_d*x3_d) + tmp0*(x1*x1) + tmp0*(x3*x3) + tmp0*((-x1 + x2)*(-x1 + x2));
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* Jacobian df/dx of the first-order right-hand side, row-major 6 x 6; returns a status code. */
 int lcg_stiff_chain_jacobian(double t, const double *x, const double *p, double *J)
@@ -292,6 +309,8 @@ int lcg_stiff_chain_jacobian(double t, const double *x, const double *p, double 
     }
     return LCG_OK;
 }
+#endif
+#if LCG_BUILD_PART != 1
 
 /* M(q) (row-major 3 x 3) and G = dL/dq + Q, for symplectic Euler in p = M u. */
 void lcg_stiff_chain_momentum(double t, const double *x, const double *p, double *M, double *G)
@@ -327,6 +346,7 @@ void lcg_stiff_chain_momentum(double t, const double *x, const double *p, double
     G[1] = tmp1*tmp2 - tmp3*tmp4;
     G[2] = -k_2*x3 + tmp3*tmp4;
 }
+#endif
 
 /* ------------------------------------------------------------------------------------------
  * Integrators: 3 fixed-step schemes, a generic explicit Runge-Kutta stepper
@@ -359,6 +379,7 @@ static int lcg_stiff_chain_finite(const double *x)
     }
     return 1;
 }
+#if LCG_BUILD_PART != 2
 
 /* classical Runge-Kutta (order 4): one step of x at t, its 4 stage(s) unrolled from the
  * coefficient arrays above; work holds 4 stage derivatives and a stage state. The
@@ -386,6 +407,8 @@ static int lcg_stiff_chain_rk4_step(double t, double *x, const double *parameter
     for (m = 0; m < 6; ++m) x[m] += h * (lcg_stiff_chain_rk4_b[0] * k[0 + m] + lcg_stiff_chain_rk4_b[1] * k[6 + m] + lcg_stiff_chain_rk4_b[2] * k[12 + m] + lcg_stiff_chain_rk4_b[3] * k[18 + m]);
     return LCG_OK;
 }
+#endif /* LCG_BUILD_PART != 2 */
+#if LCG_BUILD_PART != 1
 
 /* Solve the dense system E d = r (size dim) in place by Gaussian elimination with partial
  * pivoting; E and r are overwritten, d is returned in r. Returns 0 when E is singular. */
@@ -544,7 +567,9 @@ static int lcg_stiff_chain_symplectic_euler_step(double t, double *x, const doub
     for (i = 0; i < 3; ++i) x[3 + i] = momentum[i];
     return LCG_OK;
 }
+#endif /* LCG_BUILD_PART != 1 */
 
+#if LCG_BUILD_PART != 2
 /* classical Runge-Kutta (order 4): advance (t, x) by one step h; work holds 30 values. */
 int lcg_stiff_chain_step_rk4(double *t, double *x, const double *p, double h, double *work)
 {
@@ -552,7 +577,9 @@ int lcg_stiff_chain_step_rk4(double *t, double *x, const double *p, double h, do
     if (status == LCG_OK) *t += h;
     return status;
 }
+#endif
 
+#if LCG_BUILD_PART != 1
 /* symplectic (semi-implicit) Euler, momentum form (order 1): advance (t, x) by one step h; work holds 48 values. */
 int lcg_stiff_chain_step_symplectic_euler(double *t, double *x, const double *p, double h, double *work)
 {
@@ -560,7 +587,9 @@ int lcg_stiff_chain_step_symplectic_euler(double *t, double *x, const double *p,
     if (status == LCG_OK) *t += h;
     return status;
 }
+#endif
 
+#if LCG_BUILD_PART != 1
 /* implicit midpoint, Gauss s=1 (order 2): advance (t, x) by one step h; work holds 96 values. */
 int lcg_stiff_chain_step_implicit_midpoint(double *t, double *x, const double *p, double h, double *work)
 {
@@ -568,16 +597,19 @@ int lcg_stiff_chain_step_implicit_midpoint(double *t, double *x, const double *p
     if (status == LCG_OK) *t += h;
     return status;
 }
+#endif
+#if LCG_BUILD_PART != 2
 
 /* One step of the method numbered `method`, then the finiteness check of the new state. */
 static int lcg_stiff_chain_step_any(int method, double t, double *x, const double *p, double h,
                                  double *scratch, int project)
 {
+    double step_t = t;  /* implicit and symplectic steps go through their exported step function */
     int status;
     switch (method) {
     case 0: status = lcg_stiff_chain_rk4_step(t, x, p, h, scratch); break;
-    case 1: status = lcg_stiff_chain_symplectic_euler_step(t, x, p, h, scratch); break;
-    case 2: status = lcg_stiff_chain_irk_step(1, lcg_stiff_chain_implicit_midpoint_a, lcg_stiff_chain_implicit_midpoint_b, lcg_stiff_chain_implicit_midpoint_c, t, x, p, h, scratch); break;
+    case 1: status = lcg_stiff_chain_step_symplectic_euler(&step_t, x, p, h, scratch); break;
+    case 2: status = lcg_stiff_chain_step_implicit_midpoint(&step_t, x, p, h, scratch); break;
     default: return LCG_UNKNOWN_METHOD;
     }
     if (status == LCG_OK && !lcg_stiff_chain_finite(x)) status = LCG_NONFINITE_STATE;
@@ -695,3 +727,4 @@ void lcg_stiff_chain_sweep(int method, long n_members, const double *x0s, const 
         }
     }
 }
+#endif /* LCG_BUILD_PART != 2 */

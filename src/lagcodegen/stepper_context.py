@@ -49,7 +49,9 @@ def stepper_context(system, names, real: str, methods: list) -> dict:
         kind = scheme_kind(scheme)
         if kind == KIND_IMPLICIT and "jacobian" not in system.outputs:
             raise EmitError(f"method {name!r} is implicit and needs the 'jacobian' output; add it to outputs")
-        record = {"name": scheme.name, "id": number, "title": scheme.title or scheme.name, "order": scheme.order}
+        # part (LCG_BUILD_PART): explicit steppers compile beside the drivers, the others apart
+        record = {"name": scheme.name, "id": number, "title": scheme.title or scheme.name, "order": scheme.order,
+                  "part": 1 if kind == KIND_EXPLICIT else 2}
         if kind == KIND_EXPLICIT:
             context["tableaux"].append(_tableau_record(scheme, real))
             record["work"] = (scheme.stages + 1) * N
@@ -65,14 +67,14 @@ def stepper_context(system, names, real: str, methods: list) -> dict:
             arrays = f"{prefix}_{scheme.name}_a, {prefix}_{scheme.name}_b, {prefix}_{scheme.name}_c"
             record["work"] = 3 * s * N + (s * N) ** 2 + N * N + N
             record["call"] = f"{prefix}_irk_step({s}, {arrays}, *t, x, p, h, work)"
-            record["call_in_driver"] = f"{prefix}_irk_step({s}, {arrays}, t, x, p, h, scratch)"
+            record["call_in_driver"] = f"{prefix}_step_{scheme.name}(&step_t, x, p, h, scratch)"
             context["has_implicit"] = True
         else:
             if "momentum" not in system.outputs:
                 raise EmitError(f"method {name!r} needs the 'momentum' output; add it to outputs")
             record["work"] = 3 * n * n + 5 * n + N
             record["call"] = f"{prefix}_symplectic_euler_step(*t, x, p, h, work)"
-            record["call_in_driver"] = f"{prefix}_symplectic_euler_step(t, x, p, h, scratch)"
+            record["call_in_driver"] = f"{prefix}_step_{scheme.name}(&step_t, x, p, h, scratch)"
             context["has_symplectic_euler"] = True
         context["methods"].append(record)
         context["method_rows"].append({"macro": f"{prefix.upper()}_METHOD_{scheme.name.upper()}", "id": number,
