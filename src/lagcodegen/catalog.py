@@ -199,7 +199,7 @@ def pendulum_chain(n: int = 3, route: str = "bodies", name: str | None = None) -
     N, O = me.ReferenceFrame("N"), me.Point("O")
     bodies, points, previous = [], {}, O
     for i, (qi, li, mi) in enumerate(zip(q, l, m)):
-        bob = previous.locatenew(f"P{i + 1}", li * (sp.sin(qi) * N.x - sp.cos(qi) * N.y))
+        bob = previous.locatenew(f"P{i + 1}", (li * sp.sin(qi)) * N.x - (li * sp.cos(qi)) * N.y)
         bodies.append(me.Particle(f"bob{i + 1}", bob, mi))
         points[f"bob{i + 1}"] = previous = bob
     return Model(name, q, params, bodies=bodies, gravity=-g * N.y, frame=N, origin=O, points=points,
