@@ -267,10 +267,10 @@ def _compile_entry(sources, root, entry, module_name, flags, command, compiler, 
 def _start_kernel_compile(tmp: Path, sources, flags, command) -> list:
     """Start compiling the kernels (POSIX) before cffi parses the cdef and writes its wrapper, so
     that the longest jobs start first. A source with integrators is compiled as two translation
-    units at once (``LCG_BUILD_PART`` 1: the integrators, 2: everything else; see model.c.j2),
-    which keeps the second core busy. Returns [(argv, process, object path)]."""
+    units at once (``LCG_BUILD_PART`` 1: the explicit steppers and the drivers, 2: everything
+    else; see model.c.j2), which keeps the second core busy. Returns [(argv, process, object)]."""
     shared = shlex.split(sysconfig.get_config_var("CCSHARED") or "-fPIC")
-    parts = (1, 2) if "LCG_BUILD_PART != 2" in sources.source else (0,)
+    parts = (1, 2) if sources.layout.methods else (0,)
     jobs = []
     for part in parts:
         obj = tmp / f"kernels{part}.o"

@@ -15,7 +15,7 @@ NEWTON_MAX_ITERATIONS = 30
 
 #: a dynamics kernel this small (ops after CSE) is inlined into every explicit Runge-Kutta stage,
 #: so that gcc keeps the stage values in registers: with the steppers' local parameter copy, the
-#: double pendulum's RK4 step took 126 ns instead of 139 (dopri5 193 instead of 216; C harness).
+#: double pendulum's RK4 step took 126 ns instead of 139 (dopri5 192 instead of 216; C harness).
 #: Larger kernels stay calls: every inlined copy costs compile time, and there are ~20 call sites.
 HOT_DYNAMICS_MAX_OPS = 100
 
