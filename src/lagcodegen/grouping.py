@@ -114,7 +114,7 @@ def components(vector, frame) -> sp.Matrix:
     parts = [measure if part == frame else frame.dcm(part) * measure for measure, part in vector.args]
     if len(parts) == 1:
         return parts[0]
-    return sp.Matrix([sp.Add(*[p[i] for p in parts]) for i in range(3)])  # one matrix, not a sum of them
+    return sp.ImmutableMatrix([sp.Add(*[p[i] for p in parts]) for i in range(3)])  # one matrix, not a sum
 
 
 def sparse_diff(expr, x):
