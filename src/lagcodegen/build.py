@@ -4,13 +4,18 @@
 cache dir, compiles them with ``ffibuilder.compile`` together with cffi's wrapper, and
 installs the directory with one ``os.replace`` (see ``cache.py``). The key covers
 everything that changes the binary: C text, cdef, flags, compiler, Python, cffi and
-lagcodegen versions, like cffi's ``Verifier`` and numba's index key.
+lagcodegen versions, like cffi's ``Verifier`` and numba's index key. Every load of an entry,
+in this process or in a worker that unpickles a `CompiledSystem`, first checks the entry's
+recorded sha256 sums (``cache.entry_problem``): a tampered ``.so`` is rebuilt, never opened.
+A cache dir that cannot take the build (read-only, full) gives way to a temporary one with a
+warning (``cache.fallback_dir``); a build estimated to be expensive warns first (``buildcost``).
 """
 from __future__ import annotations
 
 import contextlib
 import functools
 import importlib.util
+import types
 import io
 import os
 import re
@@ -27,6 +32,7 @@ from typing import Any
 import cffi
 
 from . import __version__, cache
+from .buildcost import BuildCost, warn_if_expensive
 from .emit import CSources, KernelLayout
 from .printer import mangle
 
@@ -43,6 +49,7 @@ _EXT_SUFFIX = sysconfig.get_config_var("EXT_SUFFIX") or ".so"
 _FILE_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]*")
 _LOCK = threading.RLock()  # one build at a time per process: cffi chdirs while compiling
 _MEMO: dict[tuple[str, str], tuple[Any, Any, Path]] = {}  # (cache dir, key) -> (ffi, lib, .so)
+_LOADED: dict[str, types.ModuleType] = {}  # .so path -> module: checked and imported once per process
 
 
 class BuildError(RuntimeError):
@@ -68,12 +75,15 @@ class CompiledSystem:
     module_name: str
     layout: KernelLayout
     sources: CSources | None = field(default=None, repr=False, compare=False)
+    #: extra_compile_args of the build, so that a worker can rebuild the same binary if needed
+    flags: tuple = field(default=(), repr=False, compare=False)
     #: (sources, cache_dir, extra_compile_args) of the same model with the lane sweep kernel,
     #: built on first use by `lane_variant` (it doubles the compile time, and only sweeps need it)
     lane_build: tuple | None = field(default=None, repr=False, compare=False)
 
     def __reduce__(self):
-        return (_restore, (self.key, str(self.path), self.module_name, self.layout, self.sources, self.lane_build))
+        return (_restore, (self.key, str(self.path), self.module_name, self.layout, self.sources,
+                           self.lane_build, self.flags))
 
     def lane_variant(self) -> "CompiledSystem | None":
         """The same model built with the lane sweep kernel (compiled once, then cached), or None."""
@@ -84,25 +94,31 @@ class CompiledSystem:
 
 
 def _restore(key: str, path: str, module_name: str, layout: KernelLayout,
-             sources: CSources | None = None, lane_build: tuple | None = None) -> CompiledSystem:
-    if not Path(path).is_file():
-        if sources is not None:  # another machine (a Dask worker): build or load from its own cache
-            return replace(build_module(sources), lane_build=lane_build)
-        raise BuildError(f"compiled module {path} of model {layout.model!r} no longer exists; "
-                         "call build_module again")
+             sources: CSources | None = None, lane_build: tuple | None = None,
+             flags: tuple = ()) -> CompiledSystem:
+    so = Path(path)
+    problem = None if path in _LOADED else cache.entry_problem(so.parent, key, so.name)
+    if problem is not None:
+        if sources is not None:  # another machine (a Dask worker), or a damaged entry: build again
+            rebuilt = build_module(sources, extra_compile_args=flags)
+            return replace(rebuilt, lane_build=lane_build)
+        raise BuildError(f"compiled module {path} of model {layout.model!r} cannot be loaded: entry "
+                         f"{problem}; call build_module again")
     module = _import(path, module_name)
-    return CompiledSystem(module.ffi, module.lib, key, Path(path), module_name, layout, sources, lane_build)
+    return CompiledSystem(module.ffi, module.lib, key, so, module_name, layout, sources, lane_build, flags)
 
 
-@functools.lru_cache(maxsize=None)
-def _import(path: str, module_name: str):
-    """Import the extension at ``path`` (never via sys.path or the current directory)."""
-    spec = importlib.util.spec_from_file_location(module_name, path)
-    if spec is None or spec.loader is None:
-        raise ImportError(f"{path} is not an importable extension module")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+def _import(path: str, module_name: str) -> types.ModuleType:
+    """Import the extension at ``path`` (never via sys.path or the current directory), once per
+    process. Callers check the entry (``cache.entry_problem``) before the first import."""
+    if path not in _LOADED:
+        spec = importlib.util.spec_from_file_location(module_name, path)
+        if spec is None or spec.loader is None:
+            raise ImportError(f"{path} is not an importable extension module")
+        module = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(module)
+        _LOADED[path] = module
+    return _LOADED[path]
 
 
 def _compiler_command(compiler: str | None) -> list[str]:
@@ -169,7 +185,25 @@ def _key(sources: CSources, flags: list[str], identity: str) -> str:
     })
 
 
-def build_module(sources: CSources, *, cache_dir=None, extra_compile_args=(), compiler=None) -> CompiledSystem:
+@dataclass(frozen=True)
+class _Job:
+    """One build request: what `_fetch` and `_compile_entry` need besides the cache root."""
+
+    sources: CSources
+    key: str
+    module_name: str
+    flags: tuple
+    command: tuple
+    compiler: str | None
+    cost: BuildCost | None
+
+    @property
+    def so_name(self) -> str:
+        return self.module_name + _EXT_SUFFIX
+
+
+def build_module(sources: CSources, *, cache_dir=None, extra_compile_args=(), compiler=None,
+                 cost: BuildCost | None = None) -> CompiledSystem:
     """Compile (or fetch from the cache) and load the C kernels of one model.
 
     Parameters
@@ -182,70 +216,98 @@ def build_module(sources: CSources, *, cache_dir=None, extra_compile_args=(), co
         Appended to :data:`DEFAULT_FLAGS`; part of the key.
     compiler : str, optional
         Compiler command (default ``$CC``, else Python's configured compiler); part of the key.
+    cost : BuildCost, optional
+        Estimated compile cost (``buildcost.estimate_build_cost``); when the module has to be
+        compiled and the estimate is high, a ``BuildCostWarning`` says so first.
 
     Raises
     ------
     BuildError
-        No compiler, or the C does not compile: the message holds the compiler's errors
-        and the path of the kept ``.c``.
+        No compiler, no Python headers, or the C does not compile: the message holds the
+        compiler's errors and the path of the kept ``.c``.
+    cache.CacheDirError
+        ``cache_dir`` was given and cannot be used. Without it, an unusable cache dir gives way
+        to a temporary one, with a ``cache.CacheDirWarning``.
     """
-    flags = [*DEFAULT_FLAGS, *extra_compile_args]
-    command = _compiler_command(compiler)
-    key = _key(sources, flags, _compiler_identity(tuple(command)))
-    module_name = f"_lcg_{mangle(sources.layout.model)[:40]}_{key[:16]}"
+    flags = (*DEFAULT_FLAGS, *extra_compile_args)
+    command = tuple(_compiler_command(compiler))
+    key = _key(sources, list(flags), _compiler_identity(command))
+    # bounded: the module name is also a file name and a C identifier (PyInit_<name>)
+    module_name = f"_lcg_{mangle(sources.layout.model, max_len=40)}_{key[:16]}"
     _check_names(sources, module_name)
+    job = _Job(sources, key, module_name, flags, command, compiler, cost)
     with _LOCK:
         root = cache.cache_dir(cache_dir)
         if (str(root), key) not in _MEMO:
-            _MEMO[str(root), key] = _fetch(sources, root, key, module_name, flags, command, compiler)
+            try:
+                _MEMO[str(root), key] = _fetch(job, root)
+            except OSError as exc:
+                if not cache.unwritable(exc):
+                    raise
+                root = _fallback(root, exc, cache_dir, module_name)
+                if (str(root), key) not in _MEMO:
+                    _MEMO[str(root), key] = _fetch(job, root)
         ffi, lib, so_path = _MEMO[str(root), key]
-    return CompiledSystem(ffi, lib, key, so_path, module_name, sources.layout, sources)
+    return CompiledSystem(ffi, lib, key, so_path, module_name, sources.layout, sources,
+                          flags=tuple(extra_compile_args))
 
 
-def _fetch(sources, root: Path, key: str, module_name: str, flags, command, compiler):
-    """Load the entry for ``key``, building it if missing or corrupt."""
-    entry, so_name = root / module_name, module_name + _EXT_SUFFIX
+def _fallback(root: Path, exc: OSError, explicit, module_name: str) -> Path:
+    """The temporary cache dir after ``root`` could not take a build (``exc``)."""
+    problem = f"cannot take the build of {module_name} ({exc.strerror or exc}: {exc.filename})"
+    if explicit is not None:
+        raise cache.CacheDirError(f"cache directory {root} (the cache_dir argument) {problem}; "
+                                  "pass a writable directory") from exc
+    return cache.fallback_dir(root, problem)
+
+
+def _fetch(job: _Job, root: Path):
+    """Load the entry for ``job.key``, building it if missing or corrupt; (ffi, lib, .so path)."""
+    entry, so_name = root / job.module_name, job.so_name
     for attempt in range(2):
-        problem = cache.entry_problem(entry, key, so_name)
+        problem = None if str(entry / so_name) in _LOADED else cache.entry_problem(entry, job.key, so_name)
         if problem is not None:
             if problem != "missing":
                 cache.evict_entry(entry)
-            _compile_entry(sources, root, entry, module_name, flags, command, compiler, key)
+            if job.cost is not None:
+                warn_if_expensive(job.cost)
+            _compile_entry(job, root, entry)
         try:
-            module = _import(str(entry / so_name), module_name)
+            module = _import(str(entry / so_name), job.module_name)
             return module.ffi, module.lib, entry / so_name
         except ImportError as exc:  # e.g. a corrupt .so whose checksum was rewritten
             if attempt == 1 or problem is not None:
-                kept = cache.keep_failed(entry, root, module_name)
-                raise BuildError(f"built module {module_name} cannot be imported: {exc}\n"
-                                 f"kept sources: {kept / sources.source_name}",
-                                 c_path=kept / sources.source_name) from None
+                kept = cache.keep_failed(entry, root, job.module_name)
+                raise BuildError(f"built module {job.module_name} cannot be imported: {exc}\n"
+                                 f"kept sources: {kept / job.sources.source_name}",
+                                 c_path=kept / job.sources.source_name) from None
             cache.evict_entry(entry)
     raise AssertionError("unreachable")
 
 
-def _compile_entry(sources, root, entry, module_name, flags, command, compiler, key) -> None:
+def _compile_entry(job: _Job, root: Path, entry: Path) -> None:
     """Build in a private directory, then install it as ``entry`` (or keep it on failure)."""
+    sources, module_name, so_name = job.sources, job.module_name, job.so_name
+    _check_python_headers(sources)
     tmp, kept = cache.new_build_dir(root, module_name), None
     try:
         (tmp / sources.header_name).write_text(sources.header, encoding="utf-8")
         (tmp / sources.source_name).write_text(sources.source, encoding="utf-8")
-        so_name = module_name + _EXT_SUFFIX
-        kernels = _start_kernel_compile(tmp, sources, flags, command) if os.name == "posix" else None
+        kernels = _start_kernel_compile(tmp, sources, job.flags, job.command) if os.name == "posix" else None
         try:
             ffibuilder = cffi.FFI()
             ffibuilder.cdef(sources.cdef)
             ffibuilder.set_source(module_name, f'#include "{sources.header_name}"',
                                   sources=[str(tmp / sources.source_name)], include_dirs=[str(tmp)],
-                                  extra_compile_args=list(flags))
+                                  extra_compile_args=list(job.flags))
         except BaseException:
             if kernels is not None:
                 _stop(kernels)
             raise
         if kernels is not None:
-            built = _compile_in_parallel(ffibuilder, tmp, kernels, module_name, flags, command, so_name)
+            built = _compile_in_parallel(ffibuilder, tmp, kernels, module_name, job.flags, job.command, so_name)
         else:
-            with _compiler_env(compiler):
+            with _compiler_env(job.compiler):
                 built = Path(ffibuilder.compile(tmpdir=str(tmp), verbose=False))
         if built != tmp / so_name:
             os.replace(built, tmp / so_name)
@@ -254,14 +316,23 @@ def _compile_entry(sources, root, entry, module_name, flags, command, compiler, 
                 shutil.rmtree(item)
             elif item.suffix in (".o", ".obj"):
                 item.unlink()
-        cache.write_marker(tmp, key, so_name)
+        cache.write_marker(tmp, job.key, so_name)
         cache.install_entry(tmp, entry)
     except (cffi.CDefError, cffi.FFIError, cffi.VerificationError) as exc:
         kept = cache.keep_failed(tmp, root, module_name)
-        raise _compile_error(sources, kept, module_name, flags, command, exc) from None
+        raise _compile_error(sources, kept, module_name, job.flags, job.command, exc) from None
     finally:
         if kept is None and tmp.exists():
             shutil.rmtree(tmp, ignore_errors=True)
+
+
+def _check_python_headers(sources: CSources) -> None:
+    """cffi's wrapper includes Python.h: without the headers every build fails, so say so first."""
+    include = Path(sysconfig.get_paths()["include"])
+    if not (include / "Python.h").is_file():
+        raise BuildError(f"cannot build model {sources.layout.model!r}: the Python development headers "
+                         f"are not installed (no Python.h in {include}); install them, e.g. "
+                         f"apt-get install python3-dev (Debian/Ubuntu) or dnf install python3-devel")
 
 
 def _start_kernel_compile(tmp: Path, sources, flags, command) -> list:

@@ -4,25 +4,33 @@
 stage stays callable on its own for users who want to inspect or change what passes between.
 The rendered sources are cached on disk beside the built modules, keyed by the derived equations
 and every option, so loading an unchanged model again skips CSE and rendering as well as gcc.
+A sources entry is plain JSON (nothing runs on load) after a line with its sha256: any damaged
+byte makes it render again and replace the entry, never compile stale or edited C.
 """
 from __future__ import annotations
 
+import dataclasses
 import functools
 import hashlib
+import json
+import math
+import numbers
 import os
-import pickle
 import tempfile
+import warnings
 from dataclasses import replace
 from pathlib import Path
 from typing import Mapping
 
 import sympy as sp
+from sympy.core.function import AppliedUndef
 
 from . import __version__, cache
 from .build import CompiledSystem, build_module
-from .cse import momentum_obstacle, reduce_expressions
+from .buildcost import estimate_build_cost
+from .cse import KernelError, momentum_obstacle, reduce_expressions
 from .derive import EquationsOfMotion, derive_equations
-from .emit import CSources, render_sources, template_dir
+from .emit import CSources, KernelLayout, render_sources, template_dir
 from .lanes import DEFAULT_LANES
 from .printer import DEFAULT_TRIG
 from .model import Model
@@ -45,8 +53,9 @@ def compile_model(model: Model | EquationsOfMotion, *, outputs=None, fixed: Mapp
         energies, without ``jacobian`` when no implicit method is requested). The outputs the
         methods need (``rhs``; ``jacobian`` for implicit ones; ``momentum`` for symplectic Euler)
         are always added.
-    fixed : mapping parameter -> float, optional
-        Parameters folded into the code; the rest stay runtime inputs.
+    fixed : mapping parameter (Symbol or name) -> real number, optional
+        Parameters folded into the code; the rest stay runtime inputs. A value that is not a
+        finite real number, or a name that is not a parameter, raises ``KernelError`` naming it.
     methods : sequence of str
         Integration schemes to compile in (`schemes.SCHEMES`).
     precision : {"double", "float"}
@@ -60,6 +69,12 @@ def compile_model(model: Model | EquationsOfMotion, *, outputs=None, fixed: Mapp
     lane_trig : {"fast", "libm"}
         sin/cos in the lane kernel: vectorizable polynomials, or libm (bitwise equal to the
         scalar sweep, slower); see `render_sources`.
+
+    Warns
+    -----
+    BuildCostWarning
+        The module has to be compiled and the estimated compile time or memory is high
+        (`buildcost.estimate_build_cost`); the message names cheaper options.
     """
     eom = model if isinstance(model, EquationsOfMotion) else derive_equations(model)
     methods = tuple(methods)
@@ -79,21 +94,68 @@ def compile_model(model: Model | EquationsOfMotion, *, outputs=None, fixed: Mapp
     needed += ["jacobian"] if needs_jacobian(methods) else []
     needed += ["momentum"] if "symplectic_euler" in methods else []
     outputs += [o for o in needed if o not in outputs]
+    fixed = _checked_fixed(eom, fixed)
     key = _sources_key(eom, outputs, fixed, methods, precision, (trig, lanes, lane_trig))
-    entry = cache.cache_dir(cache_dir) / "sources" / f"{key[:32]}.pickle"
+    entry = cache.cache_dir(cache_dir) / "sources" / f"{key[:32]}.json"
     stored = _load_sources(entry)
     if stored is None:
         system = reduce_expressions(eom, outputs, fixed)
         sources = render_sources(system, precision, methods=methods, trig=trig)
         with_lanes = render_sources(system, precision, methods=methods, trig=trig, lanes=lanes,
                                     lane_trig=lane_trig) if lanes else None
-        stored = (sources, with_lanes if with_lanes is not None and f"{with_lanes.layout.prefix}_sweep_lanes" in with_lanes.layout.functions else None)
+        if with_lanes is not None and f"{with_lanes.layout.prefix}_sweep_lanes" not in with_lanes.layout.functions:
+            with_lanes = None
+        stored = (sources, with_lanes, {k.name: k.ops_after for k in system.kernels})
         _store_sources(entry, stored)
-    sources, with_lanes = stored
-    compiled = build_module(sources, cache_dir=cache_dir, extra_compile_args=extra_compile_args)
+    sources, with_lanes, ops = stored
+    cost = estimate_build_cost(eom.name, ops, sources.layout.methods)
+    compiled = build_module(sources, cache_dir=cache_dir, extra_compile_args=extra_compile_args, cost=cost)
     if with_lanes is None:
         return compiled
     return replace(compiled, lane_build=(with_lanes, cache_dir, tuple(extra_compile_args)))
+
+
+def _checked_fixed(eom: EquationsOfMotion, fixed: Mapping | None) -> dict:
+    """``fixed`` as {parameter name: float}; KernelError naming the entry that is not a parameter
+    or not a finite real number (before anything is keyed, reduced or compiled)."""
+    if fixed is None:
+        return {}
+    if not isinstance(fixed, Mapping):
+        raise KernelError(f"fixed must be a mapping parameter -> value, got {type(fixed).__name__}")
+    parameters = {p.name for p in eom.parameters}
+    coordinates = {q.name for q in eom.q}
+    checked = {}
+    for key, value in fixed.items():
+        if isinstance(key, sp.Symbol):
+            name = key.name
+        elif isinstance(key, AppliedUndef):  # a coordinate given as q(t)
+            name = key.func.__name__
+        else:
+            name = str(key)
+        if name not in parameters:
+            what = "a coordinate, not a parameter," if name in coordinates else "not a parameter"
+            raise KernelError(f"cannot fix {name!r}: {what} of model {eom.name!r} "
+                              f"(parameters: {', '.join(sorted(parameters)) or 'none'})")
+        checked[name] = _fixed_value(name, value)
+    return checked
+
+
+def _fixed_value(name: str, value) -> float:
+    """float(value) for a real number (Python, numpy or a sympy number), else KernelError."""
+    if isinstance(value, (bool, str, bytes)) or value is None:
+        number = None  # float("1.5") and float(True) work, but neither is a number given as one
+    elif isinstance(value, sp.Basic):
+        number = float(value) if value.is_number and value.is_real else None
+    elif isinstance(value, numbers.Real):
+        number = float(value)
+    else:
+        number = None
+    if number is None:
+        raise KernelError(f"fixed parameter {name!r} must be a real number, got "
+                          f"{type(value).__name__} {value!r}")
+    if not math.isfinite(number):
+        raise KernelError(f"fixed parameter {name!r} must be finite, got {value!r}")
+    return number
 
 
 def _sources_key(eom: EquationsOfMotion, outputs, fixed, methods, precision,
@@ -124,24 +186,53 @@ def _package_digest() -> str:
     return digest.hexdigest()
 
 
+_SOURCES_MAGIC = "lagcodegen-sources-v1"
+
+
 def _load_sources(entry: Path) -> tuple | None:
-    """(sources, sources with the lane kernel or None), or None when missing or unreadable."""
+    """(sources, sources with the lane kernel or None, {kernel: ops after CSE}), or None when the
+    entry is missing or fails any check (then the caller renders again and replaces it)."""
     try:
-        with open(entry, "rb") as handle:
-            stored = pickle.load(handle)
-    except FileNotFoundError:
+        data = entry.read_bytes()
+        head, _, body = data.partition(b"\n")
+        if head != f"{_SOURCES_MAGIC} {hashlib.sha256(body).hexdigest()}".encode("ascii"):
+            return None  # damaged (or written by another format): any byte counts
+        stored = json.loads(body.decode("utf-8"))
+        lanes = stored["lanes"]
+        ops = {str(k): int(v) for k, v in stored["ops"].items()}
+        return (_csources(stored["sources"]), None if lanes is None else _csources(lanes), ops)
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):  # ValueError: bad UTF-8 or JSON
         return None
-    except (OSError, pickle.UnpicklingError, EOFError, AttributeError, TypeError):  # corrupt: rebuild
-        return None
-    if (isinstance(stored, tuple) and len(stored) == 2 and isinstance(stored[0], CSources)
-            and (stored[1] is None or isinstance(stored[1], CSources))):
-        return stored
-    return None
 
 
-def _store_sources(entry: Path, sources: tuple) -> None:
-    entry.parent.mkdir(parents=True, exist_ok=True)
-    handle, temporary = tempfile.mkstemp(dir=entry.parent, suffix=".tmp")
-    with os.fdopen(handle, "wb") as out:
-        pickle.dump(sources, out, protocol=pickle.HIGHEST_PROTOCOL)
-    os.replace(temporary, entry)  # atomic: concurrent builders see the old file or the new one
+def _csources(fields: dict) -> CSources:
+    """CSources from its JSON form (lists back to tuples, as KernelLayout holds them)."""
+    def tuples(value):
+        return tuple(tuples(v) for v in value) if isinstance(value, list) else value
+    layout = KernelLayout(**{k: tuples(v) for k, v in fields["layout"].items()})
+    return CSources(layout=layout, **{k: v for k, v in fields.items() if k != "layout"})
+
+
+def _store_sources(entry: Path, stored: tuple) -> None:
+    """Write the entry atomically; a cache dir that cannot take it only costs a warning."""
+    sources, lanes, ops = stored
+    body = json.dumps({"sources": dataclasses.asdict(sources),
+                       "lanes": None if lanes is None else dataclasses.asdict(lanes), "ops": ops},
+                      sort_keys=True, ensure_ascii=False).encode("utf-8")
+    text = f"{_SOURCES_MAGIC} {hashlib.sha256(body).hexdigest()}\n".encode("ascii") + body
+    try:
+        cache.subdir(entry.parent.parent, entry.parent.name)
+        if entry.is_dir() and not entry.is_symlink():  # a damaged cache: the entry must be a file
+            cache.evict_entry(entry)
+        handle, temporary = tempfile.mkstemp(dir=entry.parent, suffix=".tmp")
+        try:
+            with os.fdopen(handle, "wb") as out:
+                out.write(text)
+            os.replace(temporary, entry)  # atomic: concurrent builders see the old file or the new one
+        finally:
+            if os.path.exists(temporary):
+                os.unlink(temporary)
+    except OSError as exc:
+        warnings.warn(cache.CacheDirWarning(
+            f"could not store the rendered sources in {entry} ({exc.strerror or exc}); they will be "
+            f"rendered again next time. Set {cache.ENV_VAR} to a writable directory"), stacklevel=3)

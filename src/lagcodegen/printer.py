@@ -96,8 +96,8 @@ def _escape(ch: str) -> str:
     return f"_U{cp:08x}_"
 
 
-def mangle(name: str, taken: set | None = None) -> str:
-    """Map any string to a safe, deterministic C identifier.
+def mangle(name: str, taken: set | None = None, max_len: int = 63) -> str:
+    """Map any string to a safe, deterministic C identifier of at most ``max_len`` characters.
 
     Rules, in order:
 
@@ -106,7 +106,17 @@ def mangle(name: str, taken: set | None = None) -> str:
     2. a leading digit or underscore, or a leading ``lcg_`` (lagcodegen's exported
        namespace), gets the prefix ``v_`` (``_X...`` and ``__...`` are reserved by C);
     3. a name in :data:`RESERVED_NAMES` gets the suffix ``_`` (``sin`` -> ``sin_``);
-    4. with ``taken``, a clash adds ``_2``, ``_3``, ... and the result is added to ``taken``.
+    4. a result longer than ``max_len`` keeps its first ``max_len - 9`` characters and gets
+       ``_`` plus 8 hex digits of the sha256 of the whole ``name``: readable, bounded, and
+       names that differ only beyond the cut still differ;
+    5. with ``taken``, a clash adds ``_2``, ``_3``, ... (shortened again by rule 4 if needed)
+       and the result is added to ``taken``.
+
+    The bound keeps every file name built from an identifier (``lcg_<model>.c``, the module
+    ``_lcg_<model>_<key16>``) far below the 255-byte limit of common file systems, and local
+    names within the 63 significant characters C99 (5.2.4.1) guarantees for internal
+    identifiers. Exported names (``lcg_<model>_<function>``) can be longer than the 31
+    characters C99 guarantees for external identifiers; gcc, clang and MSVC keep them all.
 
     Parameters
     ----------
@@ -114,26 +124,46 @@ def mangle(name: str, taken: set | None = None) -> str:
         Any text.
     taken : set of str, optional
         Names already in use in the same C scope; updated in place.
+    max_len : int
+        Longest result, at least 16.
 
     Returns
     -------
     str
-        Matches ``[A-Za-z_][A-Za-z0-9_]*``; depends only on ``name`` and ``taken``.
+        Matches ``[A-Za-z_][A-Za-z0-9_]*``; depends only on ``name``, ``taken`` and ``max_len``.
+
+    Examples
+    --------
+    >>> mangle("double"), mangle("θ₁"), mangle("2nd link")
+    ('double_', 'v__u03b8__u2081_', 'v_2nd_link')
+    >>> len(mangle("a" * 250)), mangle("a" * 250) == mangle("a" * 249)
+    (63, False)
     """
     if not isinstance(name, str):
         raise TypeError(f"mangle expects a str, got {type(name).__name__}: {name!r}")
+    if not isinstance(max_len, int) or max_len < 16:
+        raise ValueError(f"mangle max_len must be an int >= 16, got {max_len!r}")
+
+    def bounded(text: str) -> str:
+        if len(text) <= max_len:
+            return text
+        from hashlib import sha256  # here, not at the top: only this function may change
+        whole = sha256(f"{name}\0{text}".encode("utf-8", "surrogatepass")).hexdigest()[:8]
+        return f"{text[:max_len - 9]}_{whole}"
+
     out = "".join(c if (c.isascii() and (c.isalnum() or c == "_")) else _escape(c) for c in name)
     if not out or out[0].isdigit() or out[0] == "_" or out.lower().startswith("lcg_"):
         out = "v_" + out
     if out in RESERVED_NAMES:
         out += "_"
+    out = bounded(out)
     if taken is not None:
         base, k = out, 1
         while out in taken or out in RESERVED_NAMES:
             k += 1
-            out = f"{base}_{k}"
+            out = bounded(f"{base}_{k}")
         taken.add(out)
-    assert _IDENT.fullmatch(out), out
+    assert _IDENT.fullmatch(out) and len(out) <= max_len, out
     return out
 
 
