@@ -1,5 +1,7 @@
-"""Build stage and on-disk cache: hit, miss on a flag change, rebuild after corruption,
-clear errors (bad C, no compiler), concurrent builders, pickling across processes.
+"""Build stage and on-disk cache: hit, miss on a flag change, rebuild after corruption (any
+byte of any file of an entry, paths of the wrong kind, a tampered .so that would kill the
+process if it were opened), clear errors (bad C, no compiler), concurrent builders, pickling
+across processes.
 
 Every test uses a fresh ``LAGCODEGEN_CACHE_DIR`` under ``tmp_path`` and hand-written C (a
 ``tag`` in a comment makes each test's key, and so its module name, unique, so the
@@ -8,6 +10,7 @@ in-process memo of one test never serves another).
 from __future__ import annotations
 
 import dataclasses
+import json
 import multiprocessing
 import os
 import pickle
@@ -224,7 +227,9 @@ def test_rebuild_after_unloadable_so(cache_root, compile_counter):
     path, _, _ = _in_subprocess(_worker_build, "garbage", str(cache_root))
     so = Path(path)
     so.write_bytes(b"this is not an ELF file")
-    cache.write_marker(so.parent, so.parent.joinpath(cache.MARKER).read_text().split()[0], so.name)
+    cache.write_marker(so.parent, json.loads(so.parent.joinpath(cache.MARKER).read_text())["key"], so.name)
+    assert cache.entry_problem(so.parent, json.loads(so.parent.joinpath(cache.MARKER).read_text())["key"],
+                               so.name) is None  # the checksums really match: this is the import path
     system = build_module(tiny_sources("garbage"))
     assert len(compile_counter) == 1
     assert call_add(system, [1.0]) == [2.0]
@@ -312,3 +317,134 @@ def test_explicit_compiler_is_used_and_env_restored(cache_root, monkeypatch):
     system = build_module(tiny_sources("explicit-cc"), compiler=gcc)
     assert call_add(system, [0.5]) == [1.5]
     assert "CC" not in os.environ
+
+
+# --- every byte of an entry is covered by a checksum ------------------------------------------
+
+def _entry_files(entry: Path) -> list[Path]:
+    return sorted(p for p in entry.iterdir() if p.is_file())
+
+
+def _flip(path: Path, rng, data: bytes | None = None) -> tuple[int, int]:
+    """Replace one byte of ``path`` (seeded position, a different value); return (offset, old)."""
+    data = path.read_bytes() if data is None else data
+    offset = int(rng.integers(len(data)))
+    new = (data[offset] + int(rng.integers(1, 256))) % 256
+    path.write_bytes(data[:offset] + bytes([new]) + data[offset + 1:])
+    return offset, data[offset]
+
+
+@pytest.mark.compiler
+@needs_cc
+def test_every_sampled_one_byte_corruption_of_an_entry_is_seen(cache_root):
+    # 80 seeded single-byte corruptions of each file of a real entry (.so, .c, .h, cffi's
+    # wrapper .c, the marker): the check that runs before any dlopen must flag every one.
+    import numpy as np
+
+    # Built by another process: rewriting a .so this process has mapped would crash it.
+    path, _, _ = _in_subprocess(_worker_build, "every-byte", str(cache_root))
+    entry, so = Path(path).parent, Path(path).name
+    key = json.loads((entry / cache.MARKER).read_text())["key"]
+    files = _entry_files(entry)
+    assert {p.suffix for p in files} >= {".so", ".c", ".h", ".json"} and len(files) == 5, files
+    rng = np.random.default_rng(20240611)
+    for path in files:
+        data = path.read_bytes()
+        for _ in range(80):
+            offset, _old = _flip(path, rng, data)
+            problem = cache.entry_problem(entry, key, so)
+            assert problem not in (None, "missing"), f"{path.name}: byte {offset} changed, not seen"
+        path.write_bytes(data)
+        assert cache.entry_problem(entry, key, so) is None
+
+
+@pytest.mark.compiler
+@needs_cc
+@pytest.mark.parametrize("kind", [".so", "tiny.c", cache.MARKER])
+def test_corrupt_entry_file_rebuilds_with_same_numbers(cache_root, compile_counter, kind):
+    import numpy as np
+
+    path, _, _ = _in_subprocess(_worker_build, f"corrupt-{kind}", str(cache_root))  # never mapped here
+    entry = Path(path).parent
+    target = Path(path) if kind == ".so" else entry / kind
+    original = target.read_bytes()
+    _flip(target, np.random.default_rng(7))
+    system = build_module(tiny_sources(f"corrupt-{kind}"))
+    assert len(compile_counter) == 1 and system.path == Path(path)
+    assert call_add(system, [41.0, -1.5]) == [42.0, -0.5]  # out = in + 1 (the C above)
+    assert cache.entry_problem(entry, system.key, system.path.name) is None  # replaced, valid
+    if kind == "tiny.c":  # our own text: the rebuilt file is the original one again
+        assert target.read_bytes() == original
+
+
+@pytest.mark.compiler
+@needs_cc
+@pytest.mark.parametrize("damage", ["entry is a file", "so is a directory", "marker is a directory",
+                                    "so is a symlink"])
+def test_paths_of_the_wrong_kind_rebuild(cache_root, compile_counter, damage):
+    path, _, _ = _in_subprocess(_worker_build, f"kind-{damage}", str(cache_root))
+    so = Path(path)
+    entry = so.parent
+    if damage == "entry is a file":
+        shutil.rmtree(entry)
+        entry.write_text("not a directory")
+    elif damage == "so is a directory":
+        so.unlink()
+        so.mkdir()
+        (so / "inner").write_text("x")
+    elif damage == "marker is a directory":
+        (entry / cache.MARKER).unlink()
+        (entry / cache.MARKER).mkdir()
+    else:  # same bytes, but through a link the entry does not own
+        elsewhere = cache_root / "elsewhere.so"
+        shutil.copy(so, elsewhere)
+        so.unlink()
+        so.symlink_to(elsewhere)
+    system = build_module(tiny_sources(f"kind-{damage}"))
+    assert len(compile_counter) == 1 and system.path == so
+    assert entry.is_dir() and so.is_file() and not so.is_symlink()
+    assert call_add(system, [2.0]) == [3.0]
+
+
+_BOMB = """\
+#include <stdlib.h>
+__attribute__((constructor)) static void lcg_test_bomb(void) { abort(); }
+int lcg_test_bomb_symbol;
+"""
+
+
+def _unpickle_and_call(blob: bytes) -> tuple[str, list[float]]:
+    system = pickle.loads(blob)
+    return str(system.path), call_add(system, [1.0])
+
+
+@pytest.mark.compiler
+@needs_cc
+def test_so_that_kills_on_load_is_never_opened(cache_root, tmp_path):
+    # A shared library whose constructor aborts: if any load path dlopened it, the worker
+    # process would die (SIGABRT). The checksum check must reject it first, on the build path
+    # and on the unpickling path, and rebuild from the sources.
+    gcc = shutil.which("gcc") or shutil.which("cc")
+    (tmp_path / "bomb.c").write_text(_BOMB)
+    bomb = tmp_path / "bomb.so"
+    subprocess.run([gcc, "-shared", "-fPIC", str(tmp_path / "bomb.c"), "-o", str(bomb)], check=True)
+    crash = subprocess.run([sys.executable, "-c", f"import ctypes; ctypes.CDLL({str(bomb)!r})"],
+                           capture_output=True)
+    assert crash.returncode != 0  # the bomb really kills a process that opens it
+
+    system = build_module(tiny_sources("bomb"))
+    blob = pickle.dumps(system)
+    shutil.copy(bomb, system.path)  # tampered after the build: its checksum no longer matches
+    path, values = _in_subprocess(_unpickle_and_call, blob)
+    assert (Path(path), values) == (system.path, [2.0])
+    assert cache.entry_problem(system.path.parent, system.key, system.path.name) is None
+
+    shutil.copy(bomb, system.path)
+    path, values, compiled = _in_subprocess(_worker_build, "bomb", str(cache_root))
+    assert (Path(path), values, compiled) == (system.path, [2.0, 3.0], 1)
+
+    shutil.copy(bomb, system.path)  # no sources to rebuild from: a clear error, not a crash
+    bare = pickle.dumps(dataclasses.replace(system, sources=None))
+    with pytest.raises(BuildError, match="checksum") as info:
+        _in_subprocess(_unpickle_and_call, bare)
+    assert str(system.path) in str(info.value)
