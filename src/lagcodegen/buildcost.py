@@ -16,6 +16,8 @@ import warnings
 from dataclasses import dataclass
 from typing import Mapping
 
+from .cache import user_stacklevel
+
 __all__ = ["BuildCost", "BuildCostWarning", "estimate_build_cost", "warn_if_expensive",
            "MAX_SECONDS", "MAX_MEGABYTES"]
 
@@ -126,7 +128,7 @@ def warn_if_expensive(cost: BuildCost, max_seconds: float | None = None,
     max_megabytes = MAX_MEGABYTES if max_megabytes is None else max_megabytes
     if cost.seconds <= max_seconds and cost.megabytes <= max_megabytes:
         return False
-    warnings.warn(BuildCostWarning(cost.message()), stacklevel=4)
+    warnings.warn(BuildCostWarning(cost.message()), stacklevel=user_stacklevel())
     return True
 
 

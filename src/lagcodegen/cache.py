@@ -24,6 +24,7 @@ import hashlib
 import json
 import os
 import shutil
+import sys
 import tempfile
 import warnings
 from pathlib import Path
@@ -31,7 +32,7 @@ from pathlib import Path
 __all__ = [
     "ENV_VAR", "MARKER", "CacheDirError", "CacheDirWarning", "cache_dir", "fallback_dir",
     "unwritable", "subdir", "source_key", "new_build_dir", "write_marker", "entry_problem",
-    "install_entry", "evict_entry", "keep_failed", "file_sha256",
+    "install_entry", "evict_entry", "keep_failed", "file_sha256", "user_stacklevel",
 ]
 
 ENV_VAR = "LAGCODEGEN_CACHE_DIR"
@@ -123,7 +124,7 @@ def fallback_dir(failed: Path, problem: str) -> Path:
         warnings.warn(CacheDirWarning(
             f"cache directory {failed} {problem}; set {ENV_VAR} to a writable directory. "
             f"Using a temporary directory for this process instead: builds will not be reused"),
-            stacklevel=3)
+            stacklevel=user_stacklevel())
     if "dir" not in _FALLBACK:
         try:
             _FALLBACK["dir"] = Path(tempfile.mkdtemp(prefix="lagcodegen-cache-")).resolve()
@@ -133,6 +134,16 @@ def fallback_dir(failed: Path, problem: str) -> Path:
                                 f"set {ENV_VAR} to a writable directory") from None
         atexit.register(shutil.rmtree, _FALLBACK["dir"], True)
     return _FALLBACK["dir"]
+
+
+def user_stacklevel() -> int:
+    """``stacklevel`` for ``warnings.warn`` called right here that points at the first frame
+    outside lagcodegen (the user's call of ``compile_model`` or ``build_module``)."""
+    package = str(Path(__file__).resolve().parent)
+    frame, level = sys._getframe(1), 1
+    while frame is not None and str(Path(frame.f_code.co_filename).resolve()).startswith(package):
+        frame, level = frame.f_back, level + 1
+    return level
 
 
 def subdir(root: Path, name: str) -> Path:

@@ -235,4 +235,5 @@ def _store_sources(entry: Path, stored: tuple) -> None:
     except OSError as exc:
         warnings.warn(cache.CacheDirWarning(
             f"could not store the rendered sources in {entry} ({exc.strerror or exc}); they will be "
-            f"rendered again next time. Set {cache.ENV_VAR} to a writable directory"), stacklevel=3)
+            f"rendered again next time. Set {cache.ENV_VAR} to a writable directory"),
+            stacklevel=cache.user_stacklevel())
