@@ -210,3 +210,87 @@ def test_parameter_named_t_is_not_time(tmp_path, require_tool, plain_system, rng
     case = ("param_t", "pendulum", ("a", "b"), ("t", "m2", "l1", "l2", "g"), ("bob1", "bob2"))
     check_same_numbers(build_module(sources_of(case, methods=())), plain_system, rng)
     gcc_strict(sources_of(case), tmp_path, gcc, "double")
+
+
+# --- long names: every identifier and file name stays bounded ---------------------------------
+
+#: lengths around C99's 63 significant characters of an internal identifier, and far beyond
+LONG = {"1": "a", "63": "a" * 63, "64": "a" * 64, "250": "a" * 250, "punct50": "!@#$%^&*()" * 5,
+        "unicode": "θέσηγωνίαπεδουλου" * 6, "keyword": "double"}
+
+
+@pytest.mark.parametrize("name", list(LONG.values()), ids=list(LONG))
+def test_mangle_is_bounded_safe_and_deterministic(name):
+    from lagcodegen.printer import RESERVED_NAMES, mangle
+
+    out = mangle(name)
+    assert re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", out) and len(out) <= 63
+    assert out not in RESERVED_NAMES and not out.lower().startswith("lcg_")
+    assert mangle(name) == out  # deterministic
+    assert len(mangle(name, max_len=40)) <= 40
+    taken = set()
+    first, second = mangle(name, taken), mangle(name, taken)  # a clash in one scope
+    assert first != second and len(second) <= 63 and taken == {first, second}
+
+
+def test_mangle_keeps_short_names_and_separates_long_ones():
+    from lagcodegen.printer import mangle
+
+    assert mangle("a" * 63) == "a" * 63  # at the limit: unchanged, as before the bound
+    assert mangle("a" * 64).startswith("a" * 54 + "_") and len(mangle("a" * 64)) == 63
+    # names that differ only after the cut must not collide (a hash of the whole name)
+    stem = "link" * 30
+    variants = {mangle(stem + tail) for tail in ("1", "2", "_1", " 1", "θ")}
+    assert len(variants) == 5 and all(v.startswith(stem[:54]) for v in variants)
+    assert mangle("double") == "double_"
+
+
+#: (id, model name, coordinates, parameters, points): long and odd names everywhere
+LONG_CASES = [
+    ("len250", "m" * 250, ("q" * 250 + "1", "q" * 250 + "2"), ("m1", "m2", "l1", "l2", "g" * 300),
+     ("bob1", "bob2")),
+    ("len63_64", "m" * 63, ("a" * 63, "a" * 64), ("b" * 64, "b" * 65, "l1", "l2", "g"), ("p" * 64, "bob2")),
+    ("punct", "!@#$%^&*()" * 5, ("?" * 50, "+" * 50), ("m1", "m2", ";" * 50, "l2", "g"), ("bob1", "bob2")),
+    ("unicode", "θέσηγωνίαπεδουλου" * 6, ("θ" * 40, "φ" * 40), ("m₁" * 30, "m₂" * 30, "l1", "l2", "g"),
+     ("bob1", "bob2")),
+    ("after_cut", "pendulum", ("x" * 80 + "1", "x" * 80 + "2"), ("y" * 80 + "1", "y" * 80 + "2", "l1", "l2", "g"),
+     ("bob1", "bob2")),
+]
+
+
+@pytest.mark.compiler
+@pytest.mark.parametrize("case", LONG_CASES, ids=[c[0] for c in LONG_CASES])
+def test_long_names_build_and_give_plain_values(case, tmp_path, require_tool, plain_system, rng):
+    # These raised "OSError: File name too long" (model names) before identifiers were bounded.
+    gcc = require_tool("gcc")
+    sources = sources_of(case)
+    gcc_strict(sources, tmp_path, gcc, "double")
+    for file_name in (sources.header_name, sources.source_name):
+        assert len(file_name.encode()) <= 80
+    identifiers = set(re.findall(r"\b[A-Za-z_][A-Za-z0-9_]*\b", without_comments(sources.source)))
+    assert max(len(i) for i in identifiers if not i.startswith("lcg_")) <= 63
+    system = build_module(sources_of(case, methods=()))
+    assert len(system.module_name) <= 63 and len(system.path.name.encode()) <= 120
+    assert system.layout.model == case[1] and system.layout.coordinates == case[2]  # names kept
+    check_same_numbers(system, plain_system, rng)
+
+
+def test_models_differing_after_the_cut_get_different_prefixes():
+    plain = ("plain",) + PLAIN
+    first = sources_of(("a",) + ("z" * 100 + "1",) + plain[2:], methods=())
+    second = sources_of(("b",) + ("z" * 100 + "2",) + plain[2:], methods=())
+    assert first.layout.prefix != second.layout.prefix and first.header_name != second.header_name
+
+
+@pytest.mark.compiler
+def test_cli_emit_writes_bounded_file_names(tmp_path, capsys):
+    from lagcodegen.cli import main
+
+    model_file = tmp_path / "long_model.py"
+    model_file.write_text(
+        "from lagcodegen import catalog\n"
+        f"model = catalog.pendulum_chain(1, name={'pendulum' * 40!r})\n")
+    assert main(["emit", str(model_file), "--out", str(tmp_path / "out")]) == 0
+    written = sorted(p.name for p in (tmp_path / "out").iterdir())
+    assert len(written) == 2 and all(len(name) <= 80 for name in written), written
+    assert written[0].startswith("lcg_pendulumpendulum")
