@@ -16,7 +16,6 @@ import contextlib
 import functools
 import importlib.util
 import types
-import io
 import os
 import re
 import shlex
@@ -33,6 +32,8 @@ import cffi
 
 from . import __version__, cache
 from .buildcost import BuildCost, warn_if_expensive
+from .compiler import (BuildError, check_python_headers, compile_error, compile_in_parallel,
+                       start_kernel_compile, stop)
 from .emit import CSources, KernelLayout
 from .printer import mangle
 
@@ -50,14 +51,6 @@ _FILE_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]*")
 _LOCK = threading.RLock()  # one build at a time per process: cffi chdirs while compiling
 _MEMO: dict[tuple[str, str], tuple[Any, Any, Path]] = {}  # (cache dir, key) -> (ffi, lib, .so)
 _LOADED: dict[str, types.ModuleType] = {}  # .so path -> module: checked and imported once per process
-
-
-class BuildError(RuntimeError):
-    """A C build failed. ``command``, ``stderr`` and ``c_path`` (the kept ``.c``) say why and where."""
-
-    def __init__(self, message: str, *, command: str = "", stderr: str = "", c_path: Path | None = None):
-        super().__init__(message)
-        self.command, self.stderr, self.c_path = command, stderr, c_path
 
 
 @dataclass(frozen=True)
@@ -288,12 +281,12 @@ def _fetch(job: _Job, root: Path):
 def _compile_entry(job: _Job, root: Path, entry: Path) -> None:
     """Build in a private directory, then install it as ``entry`` (or keep it on failure)."""
     sources, module_name, so_name = job.sources, job.module_name, job.so_name
-    _check_python_headers(sources)
+    check_python_headers(sources)
     tmp, kept = cache.new_build_dir(root, module_name), None
     try:
         (tmp / sources.header_name).write_text(sources.header, encoding="utf-8")
         (tmp / sources.source_name).write_text(sources.source, encoding="utf-8")
-        kernels = _start_kernel_compile(tmp, sources, job.flags, job.command) if os.name == "posix" else None
+        kernels = start_kernel_compile(tmp, sources, job.flags, job.command) if os.name == "posix" else None
         try:
             ffibuilder = cffi.FFI()
             ffibuilder.cdef(sources.cdef)
@@ -302,10 +295,10 @@ def _compile_entry(job: _Job, root: Path, entry: Path) -> None:
                                   extra_compile_args=list(job.flags))
         except BaseException:
             if kernels is not None:
-                _stop(kernels)
+                stop(kernels)
             raise
         if kernels is not None:
-            built = _compile_in_parallel(ffibuilder, tmp, kernels, module_name, job.flags, job.command, so_name)
+            built = compile_in_parallel(ffibuilder, tmp, kernels, module_name, job.flags, job.command, so_name)
         else:
             with _compiler_env(job.compiler):
                 built = Path(ffibuilder.compile(tmpdir=str(tmp), verbose=False))
@@ -320,100 +313,7 @@ def _compile_entry(job: _Job, root: Path, entry: Path) -> None:
         cache.install_entry(tmp, entry)
     except (cffi.CDefError, cffi.FFIError, cffi.VerificationError) as exc:
         kept = cache.keep_failed(tmp, root, module_name)
-        raise _compile_error(sources, kept, module_name, job.flags, job.command, exc) from None
+        raise compile_error(sources, kept, module_name, job.flags, job.command, exc) from None
     finally:
         if kept is None and tmp.exists():
             shutil.rmtree(tmp, ignore_errors=True)
-
-
-def _check_python_headers(sources: CSources) -> None:
-    """cffi's wrapper includes Python.h: without the headers every build fails, so say so first."""
-    include = Path(sysconfig.get_paths()["include"])
-    if not (include / "Python.h").is_file():
-        raise BuildError(f"cannot build model {sources.layout.model!r}: the Python development headers "
-                         f"are not installed (no Python.h in {include}); install them, e.g. "
-                         f"apt-get install python3-dev (Debian/Ubuntu) or dnf install python3-devel")
-
-
-def _start_kernel_compile(tmp: Path, sources, flags, command) -> list:
-    """Start compiling the kernels (POSIX) before cffi parses the cdef and writes its wrapper, so
-    that the longest jobs start first. A source with integrators is compiled as two translation
-    units at once (``LCG_BUILD_PART`` 1: the explicit steppers and the drivers, 2: everything
-    else; see model.c.j2), which keeps the second core busy. Returns [(argv, process, object)]."""
-    shared = shlex.split(sysconfig.get_config_var("CCSHARED") or "-fPIC")
-    parts = (1, 2) if sources.layout.methods else (0,)
-    jobs = []
-    for part in parts:
-        obj = tmp / f"kernels{part}.o"
-        argv = [*command, *flags, *shared, f"-DLCG_BUILD_PART={part}", "-I", str(tmp), "-c",
-                str(tmp / sources.source_name), "-o", str(obj)]
-        jobs.append((argv, subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True), obj))
-    return jobs
-
-
-def _stop(kernels: list) -> None:
-    for _, process, _ in kernels:
-        process.kill()
-        process.communicate()
-
-
-def _compile_in_parallel(ffibuilder, tmp: Path, kernels: list, module_name, flags, command, so_name) -> Path:
-    """Compile cffi's wrapper while the kernels compile (``kernels`` from `_start_kernel_compile`),
-    then link them all (POSIX).
-
-    The translation units are independent: the kernels get ``flags``, the wrapper (glue that
-    includes Python.h) -O0. Running them at once and skipping setuptools roughly halves a
-    cold build on two cores. A failure raises cffi.VerificationError like cffi's own build.
-    """
-    wrapper = tmp / f"{module_name}.c"
-    try:
-        with contextlib.redirect_stdout(io.StringIO()):  # cffi announces "generating <file>"
-            ffibuilder.emit_c_code(str(wrapper))
-    except BaseException:
-        _stop(kernels)
-        raise
-    shared = shlex.split(sysconfig.get_config_var("CCSHARED") or "-fPIC")
-    include = sysconfig.get_paths()["include"]
-    # the glue converts arguments once per call from Python; at -O0 it compiles in half the time
-    # of -O1 (0.16 against 0.33 s for the double pendulum), which is most of a cold build's slack
-    wrapper_flags = [f for f in flags if not f.startswith("-O")] + ["-O0"]
-    argv = [*command, *wrapper_flags, *shared, "-I", str(tmp), "-I", include, "-c", str(wrapper),
-            "-o", str(tmp / "wrapper.o")]
-    jobs = [*kernels, (argv, subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True),
-                       tmp / "wrapper.o")]
-    outputs = [process.communicate()[0] for _, process, _ in jobs]
-    for (argv, process, _), output in zip(jobs, outputs):
-        if process.returncode != 0:
-            raise cffi.VerificationError(f"{shlex.join(argv)}\n{output}")
-    link_flags = shlex.split(sysconfig.get_config_var("LDSHARED") or "cc -shared")[1:]
-    link = [*command, *link_flags, *[str(obj) for _, _, obj in jobs], "-o", str(tmp / so_name), "-lm"]
-    run = subprocess.run(link, capture_output=True, text=True)
-    if run.returncode != 0:
-        raise cffi.VerificationError(f"{shlex.join(link)}\n{run.stderr}")
-    return tmp / so_name
-
-
-def _compile_error(sources, kept: Path, module_name, flags, command, exc) -> BuildError:
-    """Re-run the failing compile with captured output, so the message shows gcc's own errors."""
-    c_path = kept / sources.source_name
-    if isinstance(exc, (cffi.CDefError, cffi.FFIError)):
-        return BuildError(f"cdef of model {sources.layout.model!r} is invalid: {exc}\n"
-                          f"kept sources: {c_path}", c_path=c_path)
-    include = sysconfig.get_paths()["include"]
-    attempts = [[*command, *flags, "-I", str(kept), "-c", str(c_path), "-o", os.devnull],
-                [*command, *flags, "-fPIC", "-I", str(kept), "-I", include,
-                 "-c", str(kept / (module_name + ".c")), "-o", os.devnull]]
-    shown, stderr = "", str(exc)
-    for argv in attempts:
-        if not Path(argv[-3]).is_file():
-            continue
-        run = subprocess.run(argv, capture_output=True, text=True)
-        if run.returncode != 0:
-            shown, stderr = shlex.join(argv), (run.stderr or run.stdout)
-            break
-    hint = ("\nhint: install the Python development headers (e.g. apt-get install python3-dev)"
-            if "Python.h" in stderr else "")
-    return BuildError(f"C compilation of model {sources.layout.model!r} failed\n"
-                      f"command: {shown or 'cffi build_ext'}\n{stderr.rstrip()}\n"
-                      f"kept sources: {c_path}{hint}",
-                      command=shown, stderr=stderr, c_path=c_path)

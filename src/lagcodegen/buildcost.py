@@ -25,21 +25,24 @@ __all__ = ["BuildCost", "BuildCostWarning", "estimate_build_cost", "warn_if_expe
 MAX_SECONDS = 30.0
 MAX_MEGABYTES = 1000.0
 
-# Calibration (cold `compile_model` builds, gcc 12 -O3, 2 cores shared with other work, of
-# `catalog.pendulum_chain(n)`, bodies route; columns: n, methods, ops after CSE per kernel
-# (dynamics, jacobian, momentum; energy and points are small), build seconds, peak gcc RSS):
-#   n=5  rk4      156 /     - /     -   0.34 s   81 MB    n=5  default  156 /  618 /  304   1.08 s   83 MB
-#   n=10 rk4      416 /     - /     -   0.47 s   82 MB    n=10 default  416 / 2217 / 1105   2.08 s   88 MB
-#   n=15 rk4      776 /     - /     -   0.91 s   83 MB    n=15 default  776 / 4719 / 2445   5.47 s  161 MB
-#   n=20 rk4     1236 /     - /     -   1.10 s   84 MB    n=20 default 1236 / 8207 / 4258  13.35 s  345 MB
-# (the default methods are 11, of which 4 implicit). Least squares in log space over these gives
-#   seconds = 0.26 + 0.027 * methods + 0.47 * sum_k (ops_k / 1000) ** 1.30
-#   MB      = 81 + 1.6 * sum_k (ops_k / 1000) ** 2.33
-# within 25 % of every row. Extrapolated to n = 40 (ops ~ 4600 / 33000 / 17000) they give
-# ~70 s and ~7 GB, against the 6 min and 2.6 GB once reported there: beyond the calibrated range
-# the estimate is an order of magnitude, which is all a warning needs.
-_SECONDS = (0.26, 0.027, 0.47, 1.30)
-_MEGABYTES = (81.0, 1.6, 2.33)
+# Calibration (cold `compile_model` builds of `catalog.pendulum_chain(n)`, bodies route, gcc 12
+# at -O3 on 2 cores shared with other work, 2026-11-24; ops after CSE of the kernels dynamics /
+# jacobian / momentum (energy and points are small); default = the 11 default methods, 4 of
+# them implicit; seconds of build_module, peak gcc RSS):
+#   n=5  rk4   156 /     - /    -   0.34 s   81 MB   default   156 /   618 /  304    1.08 s   83 MB
+#   n=10 rk4   416 /     - /    -   0.47 s   82 MB   default   416 /  2217 / 1105    2.08 s   88 MB
+#   n=15 rk4   776 /     - /    -   0.91 s   83 MB   default   776 /  4719 / 2445    5.47 s  161 MB
+#   n=20 rk4  1236 /     - /    -   1.10 s   84 MB   default  1236 /  8207 / 4258   13.35 s  345 MB
+#   n=25                                             default  1796 / 12677 / 6538   27.07 s  595 MB
+#   n=30 rk4  2456 /     - /    -   3.01 s  136 MB   default  2456 / 18125 / 9291   64.24 s  936 MB
+# Least squares in log space over these 12 rows gives (ops_k in thousands, over all kernels)
+#   seconds = 0.32 + 0.027 * methods + 0.436 * sum_k ops_k ** 1.50
+#   MB      = 80 + 4.95 * sum_k ops_k ** 1.69
+# within about a third of every row. For n = 40 (ops ~ 4300 / 32200 / 16500) they give ~2 min
+# and ~2.5 GB, against the 6 min and 2.6 GB once reported there: time grows faster than the fit
+# beyond n = 30, so the estimate errs low there; the warning (30 s) already fires from n = 26.
+_SECONDS = (0.32, 0.027, 0.436, 1.504)
+_MEGABYTES = (80.0, 4.95, 1.69)
 
 
 class BuildCostWarning(UserWarning):

@@ -20,7 +20,6 @@ import sys
 import textwrap
 from pathlib import Path
 
-import cffi
 import pytest
 
 from lagcodegen import build, cache
