@@ -68,15 +68,12 @@ class CompiledSystem:
     module_name: str
     layout: KernelLayout
     sources: CSources | None = field(default=None, repr=False, compare=False)
-    #: extra_compile_args of the build, so that a worker can rebuild the same binary if needed
-    flags: tuple = field(default=(), repr=False, compare=False)
     #: (sources, cache_dir, extra_compile_args) of the same model with the lane sweep kernel,
     #: built on first use by `lane_variant` (it doubles the compile time, and only sweeps need it)
     lane_build: tuple | None = field(default=None, repr=False, compare=False)
 
     def __reduce__(self):
-        return (_restore, (self.key, str(self.path), self.module_name, self.layout, self.sources,
-                           self.lane_build, self.flags))
+        return (_restore, (self.key, str(self.path), self.module_name, self.layout, self.sources, self.lane_build))
 
     def lane_variant(self) -> "CompiledSystem | None":
         """The same model built with the lane sweep kernel (compiled once, then cached), or None."""
@@ -87,18 +84,18 @@ class CompiledSystem:
 
 
 def _restore(key: str, path: str, module_name: str, layout: KernelLayout,
-             sources: CSources | None = None, lane_build: tuple | None = None,
-             flags: tuple = ()) -> CompiledSystem:
+             sources: CSources | None = None, lane_build: tuple | None = None) -> CompiledSystem:
     so = Path(path)
     problem = None if path in _LOADED else cache.entry_problem(so.parent, key, so.name)
     if problem is not None:
-        if sources is not None:  # another machine (a Dask worker), or a damaged entry: build again
-            rebuilt = build_module(sources, extra_compile_args=flags)
-            return replace(rebuilt, lane_build=lane_build)
-        raise BuildError(f"compiled module {path} of model {layout.model!r} cannot be loaded: entry "
-                         f"{problem}; call build_module again")
+        # another machine (a Dask worker), or a damaged entry: build again (with the default
+        # flags: the pickle does not carry extra ones) or say why not
+        if sources is not None:
+            return replace(build_module(sources), lane_build=lane_build)
+        state = "no longer exists" if problem == "missing" else f"cannot be loaded (entry: {problem})"
+        raise BuildError(f"compiled module {path} of model {layout.model!r} {state}; call build_module again")
     module = _import(path, module_name)
-    return CompiledSystem(module.ffi, module.lib, key, so, module_name, layout, sources, lane_build, flags)
+    return CompiledSystem(module.ffi, module.lib, key, so, module_name, layout, sources, lane_build)
 
 
 def _import(path: str, module_name: str) -> types.ModuleType:
@@ -241,8 +238,7 @@ def build_module(sources: CSources, *, cache_dir=None, extra_compile_args=(), co
                 if (str(root), key) not in _MEMO:
                     _MEMO[str(root), key] = _fetch(job, root)
         ffi, lib, so_path = _MEMO[str(root), key]
-    return CompiledSystem(ffi, lib, key, so_path, module_name, sources.layout, sources,
-                          flags=tuple(extra_compile_args))
+    return CompiledSystem(ffi, lib, key, so_path, module_name, sources.layout, sources)
 
 
 def _fallback(root: Path, exc: OSError, explicit, module_name: str) -> Path:
