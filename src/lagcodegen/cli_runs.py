@@ -84,8 +84,8 @@ def format_bytes(size: float) -> str:
 
 
 def check_output_file(path: str | None, option: str) -> None:
-    """Fail before any work when ``path`` (a file to write) is empty, a directory, or in a
-    directory that is missing or not writable."""
+    """Fail before any work when ``path`` (a file to write) is empty, a directory, in a missing
+    directory, or cannot be opened for writing (tried: os.access says yes to root everywhere)."""
     if path is None:
         return
     if not path.strip():
@@ -93,11 +93,16 @@ def check_output_file(path: str | None, option: str) -> None:
     target = Path(path)
     if target.is_dir():
         raise UsageError(f"{option} {path}: is a directory; give a file name")
-    parent = target.parent if str(target.parent) else Path(".")
-    if not parent.is_dir():
-        raise UsageError(f"{option} {path}: the directory {parent} does not exist")
-    if not os.access(parent, os.W_OK | os.X_OK) or (target.exists() and not os.access(target, os.W_OK)):
-        raise UsageError(f"{option} {path}: not writable (permission denied)")
+    if not target.parent.is_dir():
+        raise UsageError(f"{option} {path}: {target.parent} is not an existing directory")
+    existed = target.exists()
+    try:
+        with open(target, "ab"):
+            pass
+    except OSError as error:
+        raise UsageError(f"{option} {path}: cannot write there ({error.strerror})") from None
+    if not existed:
+        target.unlink()
 
 
 def derive_equations_of(spec: str):
