@@ -20,8 +20,19 @@ from pathlib import Path
 
 import sympy as sp
 
-from .cli_args import (EXIT_BROKEN_PIPE, EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OK, EXIT_USAGE, Parser, RunFailed,
-                       UsageError, join_negative_numbers, parse_assignments, parse_names)
+from .cli_args import (
+    EXIT_BROKEN_PIPE,
+    EXIT_FAILED,
+    EXIT_INTERRUPTED,
+    EXIT_OK,
+    EXIT_USAGE,
+    Parser,
+    RunFailed,
+    UsageError,
+    join_negative_numbers,
+    parse_assignments,
+    parse_names,
+)
 from .cli_runs import add_run_commands
 
 

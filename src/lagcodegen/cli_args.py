@@ -135,7 +135,7 @@ def parse_assignments(items, option: str) -> dict:
     return values
 
 
-def parse_axis(item: str) -> tuple[str, "np.ndarray"]:
+def parse_axis(item: str) -> tuple:
     """``name=start:stop:count`` (linspace), ``name=start:stop:count:log`` (geomspace) or
     ``name=v1,v2,...`` (explicit values) -> (name, values)."""
     import numpy as np
@@ -207,3 +207,72 @@ def read_table(path: str) -> dict:
             except ValueError:
                 raise UsageError(f"--table {path} line {line}: {name} = {cell!r} is not a number") from None
     return {name: np.array(values) for name, values in table.items()}
+
+
+SIMULATE_EPILOG = """examples:
+  lagcodegen simulate double_pendulum --t-end 10 --h 1e-3 --x0 q1=1,q2=0.5 --energy --out run.npz --plot run.png
+  lagcodegen simulate elastic_pendulum --t-end 20 --h 1e-3 --x0 r=1.3,phi=0.3 --param k=60 --fixed g=9.81
+  lagcodegen simulate stiff_chain --t-end 1 --h 1e-4 --method implicit_midpoint --x0 x1=0.1,x2=0,x3=0
+
+The .npz holds t (n_out,), x (n_out, 2n), names, energy (with --energy), points and point_names
+(models with named points), status, status_name, message, model, method, h, t_end, stride, x0,
+parameters and p (free parameter values used), fixed_names and fixed_values.
+Exit code 0 when the run completed, 1 when it stopped early (singular mass matrix, divergence) or the
+build failed, 2 for a bad command line (one line on stderr naming the culprit).
+"""
+
+SWEEP_EPILOG = """grid syntax (--grid, repeatable; members are the Cartesian product, the first axis slowest):
+  name=start:stop:count        count values, evenly spaced (numpy.linspace)
+  name=start:stop:count:log    count values, geometrically spaced (numpy.geomspace; start, stop > 0)
+  name=v1,v2,v3                these values
+A name is a free parameter (not one given with --fixed) or a state variable (q1, q1_d, ...).
+--table FILE.csv instead gives one member per row under a header row of names.
+
+fields (--field, for the summary and the heatmap):
+  q_max:<coordinate>   max |q| over the run      x_final:<state>   final value
+  energy_error         max |E - E0| over the run blowup_time       time a failed member stopped
+  steps_done           steps completed           status            0 ok, 1 singular mass matrix,
+                                                                   2 non-finite state, 3 Newton failed,
+                                                                   5 singular constraints
+
+examples:
+  lagcodegen sweep elastic_pendulum --grid phi=0.05:1:20 --grid k=15:60:46 --x0 r=1.3 --t-end 60 \\
+      --h 5e-3 --field q_max:r --out sweep.npz --heatmap sweep.png
+  lagcodegen sweep double_pendulum --grid m2=0.5,1,2 --grid q1=0:3:31 --x0 q2=0 --t-end 10 \\
+      --h 1e-3 --trajectories --stride 100 --out dp.npz
+  lagcodegen sweep stiff_chain --grid k=0.5,1,2 --grid K=1e2:1e8:61:log --t-end 1 --h 1e-3 \\
+      --x0 x1=0.1,x2=0,x3=0 --field status --heatmap stability.png
+  lagcodegen sweep double_pendulum --table members.csv --x0 q1=1,q2=0 --t-end 5 --h 1e-3 \\
+      --scheduler tcp://127.0.0.1:8786
+
+The .npz holds every SweepResult array (values (n_members, n_columns), x_final, q_max, status,
+steps_done, blowup_time, energy_error, and t, trajectories with --trajectories), grid_<name> axes
+for a grid, columns, state_names, coordinate_names, completed, and the run's settings.
+Exit code 0, 1 when the build failed, 2 for a bad command line (one line on stderr naming the culprit),
+130 when interrupted (Ctrl-C; the finished members are still written).
+"""
+
+
+def add_run_arguments(parser) -> None:
+    """Options shared by simulate and sweep."""
+    from .schemes import SCHEMES
+
+    parser.add_argument("model", help="example name (see `lagcodegen examples`) or model file")
+    parser.add_argument("--t-end", type=positive_float, required=True, metavar="T",
+                        help="end time (t starts at 0; T must be a whole number of steps H)")
+    parser.add_argument("--h", type=positive_float, required=True, metavar="H", help="fixed step size")
+    parser.add_argument("--method", default="rk4", choices=tuple(SCHEMES),
+                        help="integrator, compiled in alone (default: rk4)")
+    parser.add_argument("--x0", action="append", metavar="NAME=VALUE",
+                        help="initial state, e.g. --x0 q1=1,q2=0.5; every coordinate needs a value "
+                             "(speeds default to 0)")
+    parser.add_argument("--param", action="append", metavar="NAME=VALUE",
+                        help="value of a free parameter (repeatable or comma-separated; "
+                             "others keep the model's defaults)")
+    parser.add_argument("--fixed", action="append", metavar="NAME=VALUE",
+                        help="fold a parameter into the C code as a constant (repeatable or comma-separated)")
+    parser.add_argument("--stride", type=positive_int, default=1, metavar="K",
+                        help="keep every K-th state of a trajectory (default: 1)")
+    parser.add_argument("--project", action="store_true",
+                        help="models with holonomic constraints: project the state back onto them after every "
+                             "step (Baumgarte instead: --param baumgarte_alpha=10,baumgarte_beta=10)")

@@ -341,7 +341,7 @@ def test_emitted_rk4_step_matches_the_textbook_equations(tmp_path, capsys, requi
     gcc = require_tool("gcc")
     assert run_cli(["emit", "double_pendulum", "--methods", "rk4", "--out", tmp_path], capsys)[0] == 0
     header = (tmp_path / "lcg_double_pendulum.h").read_text()
-    assert re.search(r"p\[0\]\s*=?\s*m1\b.*p\[1\]\s*=?\s*m2\b", header, re.S), "parameter order changed"
+    assert re.search(r"p\[0\]\s*=?\s*m1\b.*p\[1\]\s*=?\s*m2\b", header, re.DOTALL), "parameter order changed"
     (tmp_path / "main.c").write_text(DRIVER)
     exe = tmp_path / "dp"
     subprocess.run([gcc, "-std=c99", "-O2", "-Wall", "-Werror", f"-I{tmp_path}", str(tmp_path / "main.c"),
