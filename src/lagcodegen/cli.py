@@ -233,44 +233,44 @@ def make_parser() -> Parser:
     return parser
 
 
-def report(prog: str, message: str, code: int) -> int:
-    """Print the one-line error of every subcommand; return its exit code."""
-    print(f"{prog}: error: {message}", file=sys.stderr)
-    return code
-
-
-def run_command(argv) -> int:
-    """Parse and run; every user error becomes one line and an exit code (see the module doc)."""
+def classify(error: Exception) -> tuple[int, str] | None:
+    """(exit code, one-line message) of an error the command line reports, or None for the rest
+    (bugs keep their traceback)."""
     from .build import BuildError
     from .simulate import SimulationError
 
+    if isinstance(error, UsageError):
+        return EXIT_USAGE, str(error)
+    if isinstance(error, KeyError):  # str() of a KeyError adds quotes around its message
+        return EXIT_USAGE, str(error.args[0] if error.args else error)
+    if isinstance(error, ValueError):  # the library's checks (ModelError, KernelError, ...) name the culprit
+        return EXIT_USAGE, str(error)
+    if isinstance(error, OSError) and not isinstance(error, BrokenPipeError):  # a file the user named
+        return EXIT_USAGE, f"{error.filename}: {error.strerror}" if error.filename else str(error)
+    if isinstance(error, MemoryError):
+        return EXIT_FAILED, f"out of memory: {error or 'MemoryError'}"
+    if isinstance(error, (RunFailed, BuildError, SimulationError)):
+        return EXIT_FAILED, str(error)
+    return None
+
+
+def run_command(argv) -> int:
+    """Parse and run; every reported error becomes one line on stderr, ``lagcodegen <command>:
+    error: <message>``, and an exit code (see the module doc)."""
     argv = join_negative_numbers(argv)
     debug = "--traceback" in argv or os.environ.get("LAGCODEGEN_DEBUG", "").strip() not in ("", "0")
-    prog = "lagcodegen" + next((f" {a}" for a in argv if not a.startswith("-")), "")
+    prog = "lagcodegen"
     try:
         args = make_parser().parse_args(argv)
         prog = f"lagcodegen {args.command}"
         return args.run(args)
-    except UsageError as error:
-        if debug:
+    except Exception as error:  # re-raised below unless classify() knows it as a reported error
+        verdict = classify(error)
+        if verdict is None or debug:
             raise
-        return report(error.prog or prog, str(error), EXIT_USAGE)
-    except (ValueError, KeyError) as error:  # the library's checks (ModelError, KernelError, ...) name the culprit
-        if debug:
-            raise
-        return report(prog, error.args[0] if isinstance(error, KeyError) and error.args else str(error),
-                      EXIT_USAGE)
-    except BrokenPipeError:
-        raise  # not the user's error: `main` exits quietly
-    except OSError as error:  # a file the user named (--out, --table, ...) cannot be read or written
-        if debug:
-            raise
-        return report(prog, f"{error.filename}: {error.strerror}" if error.filename else str(error), EXIT_USAGE)
-    except (RunFailed, BuildError, SimulationError, MemoryError) as error:
-        if debug:
-            raise
-        return report(prog, f"{type(error).__name__}: {error}" if isinstance(error, MemoryError) else str(error),
-                      EXIT_FAILED)
+        code, message = verdict
+        print(f"{getattr(error, 'prog', None) or prog}: error: {message}", file=sys.stderr)
+        return code
 
 
 def main(argv=None) -> int:

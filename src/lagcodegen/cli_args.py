@@ -1,5 +1,6 @@
-"""Command line, argument side: the parser class, number types, exit codes and the parsers of
-``NAME=VALUE`` lists, ``--grid`` axes and ``--table`` files. No command runs here.
+"""Stage: cli (arguments). The parser class, number types, exit codes, the options of simulate
+and sweep, and the parsers of ``NAME=VALUE`` lists, ``--grid`` axes and ``--table`` files.
+No command runs here.
 
 Every user error is a `UsageError` whose message names the culprit (the option and the value);
 `lagcodegen.cli.main` prints it as the one line ``lagcodegen <command>: error: <message>`` and
@@ -257,7 +258,7 @@ def add_run_arguments(parser) -> None:
     """Options shared by simulate and sweep."""
     from .schemes import SCHEMES
 
-    parser.add_argument("model", help="example name (see `lagcodegen examples`) or model file")
+    parser.add_argument("model", help="example name (list: lagcodegen examples) or model file")
     parser.add_argument("--t-end", type=positive_float, required=True, metavar="T",
                         help="end time (t starts at 0; T must be a whole number of steps H)")
     parser.add_argument("--h", type=positive_float, required=True, metavar="H", help="fixed step size")

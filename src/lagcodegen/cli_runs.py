@@ -1,4 +1,4 @@
-"""Command line: the simulate and sweep subcommands (argument parsing in `cli_args`)."""
+"""Stage: cli -> files, text. The simulate and sweep subcommands (their options in `cli_args`)."""
 from __future__ import annotations
 
 import argparse
@@ -229,7 +229,7 @@ def check_sweep_outputs(args, members: dict, eom) -> str:
     from .heatmap import product_axes, resolve_field
 
     coordinates = [q.name for q in eom.q]
-    field = args.field or f"q_max:{coordinates[0]}"
+    field = args.field if args.field is not None else f"q_max:{coordinates[0]}"
     try:
         resolve_field(field, coordinates, coordinates + [u.name for u in eom.u])
     except ValueError as error:
@@ -319,6 +319,8 @@ def cmd_sweep(args) -> int:
         raise UsageError("give the members either with --grid (repeatable) or with --table")
     check_output_file(args.out, "--out")
     check_output_file(args.heatmap, "--heatmap")
+    if args.scheduler is not None and not args.scheduler.strip():  # Client("") would start a local cluster
+        raise UsageError("--scheduler is given an empty address; give one like tcp://host:8786")
     members = parse_grid(args.grid) if args.grid else read_table(args.table)
     eom, fixed, params, x0 = prepare_run(args, "sweep", swept=members)
     n_members = math.prod(len(v) for v in members.values()) if args.grid else len(next(iter(members.values())))
@@ -330,7 +332,7 @@ def cmd_sweep(args) -> int:
     start = time.perf_counter()
     system = compile_for(eom, args.method, fixed, energy=True, points=False)
     compile_time = time.perf_counter() - start
-    client = connect(args.scheduler) if args.scheduler else None
+    client = connect(args.scheduler) if args.scheduler is not None else None
     start = time.perf_counter()
     try:
         result = sweep(system, **({"grid": members} if args.grid else {"members": members}), x0=x0,

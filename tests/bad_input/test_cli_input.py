@@ -79,6 +79,9 @@ def one_line_error(argv, capsys) -> str:
     (["sweep", "double_pendulum", *RUN, "--x0", "q1=1,q2=0", "--table", "/nonexistent/m.csv"],
      ["--table", "/nonexistent/m.csv"]),
     (["sweep", "double_pendulum", *RUN, "--x0", "q1=1,q2=0", "--grid", "m2=1,2", "--threads", "-2"], ["--threads"]),
+    (["sweep", "double_pendulum", *RUN, "--x0", "q1=1,q2=0", "--grid", "m2=1,2", "--scheduler", ""],
+     ["--scheduler", "empty"]),
+    (["sweep", "double_pendulum", *RUN, "--x0", "q1=1,q2=0", "--grid", "m2=1,2", "--field", ""], ["--field"]),
     # emit: outputs, methods and fixed parameters by name
     (["emit", "double_pendulum", "--methods", "rk5"], ["--methods", "'rk5'", "rk4"]),
     (["emit", "double_pendulum", "--methods", ""], ["--methods", "empty"]),
@@ -171,3 +174,29 @@ def test_closed_stdout_exits_quietly(tmp_path):
     _, stderr = process.communicate(timeout=120)
     assert process.returncode == 141, stderr.decode()
     assert stderr.decode().strip() == ""
+
+
+def test_failed_build_is_one_line_with_exit_code_1(monkeypatch, capsys):
+    # a build failure is not the command line's fault: exit code 1 (documented in --help), not 2
+    from lagcodegen import pipeline
+    from lagcodegen.build import BuildError
+
+    def failing_build(*args, **kwargs):
+        raise BuildError("gcc exited with status 1 (kept /tmp/x.c)", command="gcc", stderr="boom")
+
+    monkeypatch.setattr(pipeline, "compile_model", failing_build)
+    code = main(["simulate", *DP])
+    error = capsys.readouterr().err
+    assert code == 1 and error.count("\n") == 1, error
+    assert error.startswith("lagcodegen simulate: error: building double_pendulum with rk4 failed: gcc"), error
+
+
+def test_interrupt_exits_130_quietly(monkeypatch, capsys):
+    from lagcodegen import cli
+
+    def interrupted(args):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(cli, "cmd_derive", interrupted)
+    assert main(["derive", "double_pendulum"]) == 130
+    assert "Traceback" not in capsys.readouterr().err

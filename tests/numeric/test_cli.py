@@ -359,3 +359,33 @@ def test_demo_final_state_error_against_dop853_is_small(capsys):
     line = next(line for line in text.splitlines() if "final-state error against scipy DOP853" in line)
     # rk4 at h = 1e-3 over 10 s of the double pendulum: global error C h^4 with C ~ 1e3..1e4
     assert float(line.rsplit(":", 1)[1]) < 1e-6, line
+
+
+def test_examples_lists_every_model_with_full_description_coordinates_and_parameters(capsys):
+    from lagcodegen.catalog import EXAMPLES
+
+    code, text = run_cli(["examples"], capsys)
+    assert code == 0
+    entries = {entry.splitlines()[0]: entry for entry in text.strip().split("\n\n")}
+    assert list(entries) == list(EXAMPLES)
+    for name, entry in entries.items():
+        lines = entry.splitlines()[1:]
+        described = lines[:next(i for i, line in enumerate(lines) if line.strip().startswith("coordinates:"))]
+        description = " ".join(line.strip() for line in described)
+        # whole sentences, not a first line cut mid-sentence; no RST markup
+        assert len(description) > 30 and description.endswith("."), (name, description)
+        assert "`" not in entry, entry
+    # the double pendulum's coordinates and default parameters (catalog.pendulum_chain: unit
+    # masses and lengths, g = 9.81)
+    assert "coordinates: q1, q2\n" in entries["double_pendulum"]
+    assert "parameters: m1 = 1, m2 = 1, l1 = 1, l2 = 1, g = 9.81" in entries["double_pendulum"]
+    assert "coordinates: q1, q2, q3, q4, q5" in entries["pendulum_chain_5"]
+
+
+def test_top_level_help_is_plain_text(capsys):
+    with pytest.raises(SystemExit) as info:
+        main(["--help"])
+    text = capsys.readouterr().out
+    assert info.value.code == 0 and "``" not in text and "`" not in text
+    for word in ("examples", "derive", "emit", "simulate", "sweep", "demo", "--traceback", "Exit codes"):
+        assert word in text, word
