@@ -175,8 +175,8 @@ def gear_hoist(route: str = "energies") -> Model:
 
 
 def pendulum_chain(n: int = 3, route: str = "bodies", name: str | None = None) -> Model:
-    """Planar chain of n point masses m_i on massless rods l_i; q_i is link i's absolute angle
-    from the downward vertical."""
+    """Planar chain of n point masses m_i on massless rods l_i, hinged at the origin under gravity
+    g; q_i is link i's absolute angle from the downward vertical."""
     _check_route(route)
     if not isinstance(n, int) or n < 1:
         raise ValueError(f"a pendulum chain needs n >= 1 links, got {n!r}")
@@ -207,8 +207,15 @@ def pendulum_chain(n: int = 3, route: str = "bodies", name: str | None = None) -
 
 
 def double_pendulum(route: str = "bodies") -> Model:
-    """The planar double pendulum: `pendulum_chain` with n = 2."""
+    """The planar double pendulum: point masses m1, m2 on massless rods l1, l2 under gravity g;
+    q1, q2 are the rods' absolute angles from the downward vertical (`pendulum_chain`, n = 2)."""
     return pendulum_chain(2, route=route, name="double_pendulum")
+
+
+def pendulum_chain_5(route: str = "bodies") -> Model:
+    """The planar five-link pendulum: point masses m1..m5 on massless rods l1..l5 under gravity g;
+    q1..q5 are the rods' absolute angles from the downward vertical (`pendulum_chain`, n = 5)."""
+    return pendulum_chain(5, route=route)
 
 
 def stiff_chain() -> Model:
@@ -405,7 +412,7 @@ EXAMPLES = {
     "centrifugal_governor": centrifugal_governor,
     "gear_hoist": gear_hoist,
     "double_pendulum": double_pendulum,
-    "pendulum_chain_5": lambda: pendulum_chain(5),
+    "pendulum_chain_5": pendulum_chain_5,
     "stiff_chain": stiff_chain,
     "cartesian_pendulum": cartesian_pendulum,
     "slider_crank": slider_crank,

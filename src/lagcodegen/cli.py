@@ -1,18 +1,38 @@
-"""Command line: ``lagcodegen <command>``; ``lagcodegen --help`` lists the commands.
+"""Command line: lagcodegen <command>; lagcodegen --help lists the commands.
 
-A MODEL argument is a catalog example name (``lagcodegen examples``) or a Python file that
-defines ``model`` (a `Model`) or a function ``build_model()`` returning one.
+A MODEL argument is a catalog example name (lagcodegen examples) or a Python file that
+defines model (a lagcodegen.Model) or a function build_model() returning one.
+
+Errors print one line, "lagcodegen <command>: error: <message>", naming the culprit.
+Exit codes: 0 done, 1 the work failed (a run stopped early, a build failed), 2 a bad
+command line, 130 interrupted. --traceback (or LAGCODEGEN_DEBUG=1) shows the Python
+traceback instead, for developers.
 """
 from __future__ import annotations
 
 import argparse
+import os
 import runpy
 import sys
+import textwrap
 import time
 from pathlib import Path
 
 import sympy as sp
 
+from .cli_args import (
+    EXIT_BROKEN_PIPE,
+    EXIT_FAILED,
+    EXIT_INTERRUPTED,
+    EXIT_OK,
+    EXIT_USAGE,
+    Parser,
+    RunFailed,
+    UsageError,
+    join_negative_numbers,
+    parse_assignments,
+    parse_names,
+)
 from .cli_runs import add_run_commands
 
 
@@ -24,42 +44,47 @@ def load_model(spec: str):
     if spec in EXAMPLES:
         return EXAMPLES[spec]()
     path = Path(spec)
-    if not path.is_file():
-        raise SystemExit(f"lagcodegen: {spec!r} is neither an example ({', '.join(EXAMPLES)}) nor a file")
-    namespace = runpy.run_path(str(path))
-    model = namespace.get("model")
-    if model is None and callable(namespace.get("build_model")):
-        model = namespace["build_model"]()
+    if not spec.strip() or not path.is_file():
+        raise UsageError(f"model {spec!r} is neither an example ({', '.join(EXAMPLES)}) nor a file")
+    try:
+        namespace = runpy.run_path(str(path))
+        model = namespace.get("model")
+        if model is None and callable(namespace.get("build_model")):
+            model = namespace["build_model"]()
+    except Exception as error:  # the user's own code, whatever it raises: name the file and the error
+        raise UsageError(f"model file {path} failed: {type(error).__name__}: {error}") from error
     if not isinstance(model, Model):
-        raise SystemExit(f"lagcodegen: {path} must define `model` (a lagcodegen.Model) or `build_model()`")
+        raise UsageError(f"model file {path} must define `model` (a lagcodegen.Model) or `build_model()`")
     return model
 
 
-def parse_assignments(items, what: str) -> dict:
-    """``["k=10", "m=2"]`` or ``["k=10,m=2"]`` -> {"k": 10.0, "m": 2.0}."""
-    values = {}
-    for item in items or []:
-        for part in filter(None, item.split(",")):
-            name, sep, value = part.partition("=")
-            if not sep:
-                raise SystemExit(f"lagcodegen: {what} {part!r} must look like name=value")
-            try:
-                values[name.strip()] = float(value)
-            except ValueError:
-                raise SystemExit(f"lagcodegen: {what} {name!r} has a non-numeric value {value!r}") from None
-    return values
+def describe_example(name: str, builder, width: int = 88) -> str:
+    """One catalog example for ``lagcodegen examples``: name, the builder's whole description
+    (wrapped), its coordinates, and its parameters with their default values."""
+    model = builder()
+    doc = " ".join((builder.__doc__ or "").split()).replace("`", "")
+    values = {p.name: v for p, v in model.parameter_values.items()}
+    coordinates = ", ".join(str(q.func) if hasattr(q, "func") and q.args else str(q) for q in model.coordinates)
+    parameters = ", ".join(f"{p.name} = {values[p.name]:g}" if p.name in values else p.name
+                           for p in model.parameters)
+    indent = " " * 4
+    lines = [name, textwrap.fill(doc, width, initial_indent=indent, subsequent_indent=indent)]
+    lines += [textwrap.fill(f"{label}: {text or 'none'}", width, initial_indent=indent,
+                            subsequent_indent=indent * 2)
+              for label, text in (("coordinates", coordinates), ("parameters", parameters))]
+    return "\n".join(lines)
 
 
 def cmd_examples(args) -> int:
     from .catalog import EXAMPLES
 
-    for name, builder in EXAMPLES.items():
-        doc = (builder.__doc__ or "").strip().splitlines()
-        print(f"{name:22s} {doc[0] if doc else ''}")
-    return 0
+    print("\n\n".join(describe_example(name, builder) for name, builder in EXAMPLES.items()))
+    return EXIT_OK
 
 
 def cmd_derive(args) -> int:
+    """Print M and F one element a line (``M[i, j] = <expr>``, sympy syntax: sympify reads it
+    back), or as 2-D pictures with --pretty."""
     from .derive import derive_equations
 
     model = load_model(args.model)
@@ -67,38 +92,83 @@ def cmd_derive(args) -> int:
     eom = derive_equations(model)
     elapsed = time.perf_counter() - start
     print(f"{eom.name}: {eom.route}, n = {eom.n}, derived in {elapsed:.3f} s")
-    print(f"coordinates q = {list(eom.q)}; speeds u = {list(eom.u)}")
-    print(f"M(q, t) ud = F(q, u, t) with\nM =")
-    sp.pprint(eom.mass_matrix, use_unicode=False, wrap_line=False)
-    print("F =")
-    sp.pprint(eom.forcing, use_unicode=False, wrap_line=False)
-    if eom.energy is not None:
-        print("T + V =")
-        sp.pprint(eom.energy, use_unicode=False, wrap_line=False)
-    return 0
+    print(f"coordinates q = {list(eom.q)}; speeds u = {list(eom.u)}; parameters {list(eom.parameters)}")
+    print("M(q, t) ud = F(q, u, t) with")
+    blocks = [("M", eom.mass_matrix), ("F", eom.forcing)] + [("T + V", eom.energy)] * (eom.energy is not None)
+    for label, value in blocks:
+        if args.pretty:
+            print(f"{label} =")
+            sp.pprint(value, use_unicode=False, wrap_line=False)
+        elif isinstance(value, sp.MatrixBase) and value.shape[1] == 1:
+            print("\n".join(f"{label}[{i}] = {sp.sstr(value[i])}" for i in range(value.shape[0])))
+        elif isinstance(value, sp.MatrixBase):
+            print("\n".join(f"{label}[{i}, {j}] = {sp.sstr(value[i, j])}"
+                            for i in range(value.shape[0]) for j in range(value.shape[1])))
+        else:
+            print(f"{label} = {sp.sstr(value)}")
+    return EXIT_OK
+
+
+def method_outputs(methods) -> list[str]:
+    """The outputs the integrators ``methods`` need.
+
+    TEMPORARY: the same rule as in `pipeline.compile_model` (rhs; jacobian for implicit methods;
+    momentum for symplectic Euler); to be replaced by the pipeline's own helper once it has one.
+    """
+    from .schemes import needs_jacobian
+
+    needed = ["rhs"] if methods else []
+    needed += ["jacobian"] if needs_jacobian(methods) else []
+    needed += ["momentum"] if "symplectic_euler" in methods else []
+    return needed
+
+
+def emit_request(args, eom) -> tuple[list, list, dict]:
+    """(outputs, methods, fixed) of ``lagcodegen emit``, every name checked."""
+    from .cse import DEFAULT_OUTPUTS, OUTPUT_KERNELS
+    from .schemes import SCHEMES
+
+    methods = parse_names(args.methods, "--methods", tuple(SCHEMES))
+    if args.outputs is not None:
+        outputs = parse_names(args.outputs, "--outputs", tuple(OUTPUT_KERNELS))
+    else:
+        outputs = [o for o in DEFAULT_OUTPUTS if not (o == "energy" and eom.energy is None)
+                   and not (o == "jacobian" and eom.m)]
+        outputs += ["constraints", "multipliers"] if eom.m else []
+    outputs += [o for o in method_outputs(methods) if o not in outputs]
+    fixed = parse_assignments(args.fixed, "--fixed")
+    parameters = [p.name for p in eom.parameters]
+    for name in fixed:
+        if name not in parameters:
+            raise UsageError(f"--fixed: {name!r} is not a parameter of {eom.name}; "
+                             f"parameters: {', '.join(parameters) or 'none'}")
+    return outputs, methods, fixed
 
 
 def cmd_emit(args) -> int:
-    from .cse import DEFAULT_OUTPUTS, reduce_expressions
+    from .cse import reduce_expressions
     from .derive import derive_equations
     from .emit import render_sources
 
-    eom = derive_equations(load_model(args.model))
-    outputs = args.outputs.split(",") if args.outputs else [
-        o for o in DEFAULT_OUTPUTS if not (o == "energy" and eom.energy is None)]
-    methods = args.methods.split(",") if args.methods else ()
-    system = reduce_expressions(eom, outputs, parse_assignments(args.fixed, "fixed parameter"))
-    sources = render_sources(system, args.precision, methods=methods, trig=args.trig)
     out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    (out / sources.header_name).write_text(sources.header)
-    (out / sources.source_name).write_text(sources.source)
+    if not args.out.strip() or (out.exists() and not out.is_dir()):
+        raise UsageError(f"--out {args.out!r} must be a directory (it is created if missing)")
+    eom = derive_equations(load_model(args.model))
+    outputs, methods, fixed = emit_request(args, eom)
+    system = reduce_expressions(eom, outputs, fixed)
+    sources = render_sources(system, args.precision, methods=methods, trig=args.trig)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        (out / sources.header_name).write_text(sources.header)
+        (out / sources.source_name).write_text(sources.source)
+    except OSError as error:
+        raise UsageError(f"--out {args.out}: cannot write {error.filename}: {error.strerror}") from None
     for kernel in system.kernels:
         print(f"{kernel.name:12s} ops {kernel.ops_before:6d} before CSE, {kernel.ops_after:6d} after")
     if system.fixed_parameters:
         print(f"folding {len(system.fixed_parameters)} fixed parameter(s) saved {system.ops_saved_by_fixing} ops")
     print(f"wrote {out / sources.header_name} and {out / sources.source_name}")
-    return 0
+    return EXIT_OK
 
 
 def cmd_demo(args) -> int:
@@ -130,28 +200,32 @@ def cmd_demo(args) -> int:
     final = simulate(system, x0, 10.0, 1e-3, "rk4").x[-1]
     print(f"rk4 final-state error against scipy DOP853 (rtol = atol = 1e-12): "
           f"{float(np.max(np.abs(final - reference[-1]))):.2e}")
-    return 0
+    return EXIT_OK
 
 
-def make_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="lagcodegen", description=__doc__,
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
-    commands = parser.add_subparsers(dest="command", required=True)
+def make_parser() -> Parser:
+    parser = Parser(prog="lagcodegen", description=__doc__,
+                    formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--traceback", action="store_true",
+                        help="on an error, show the Python traceback (also: LAGCODEGEN_DEBUG=1)")
+    commands = parser.add_subparsers(dest="command", required=True, metavar="command")
     commands.add_parser("examples", help="list the built-in textbook models").set_defaults(run=cmd_examples)
     commands.add_parser("demo", help="derive, compile and simulate the double pendulum").set_defaults(run=cmd_demo)
     derive = commands.add_parser("derive", help="derive and print M(q,t) ud = F(q,u,t)")
     derive.add_argument("model", help="example name or model file")
+    derive.add_argument("--pretty", action="store_true",
+                        help="2-D pictures instead of one sympy expression per element")
     derive.set_defaults(run=cmd_derive)
     emit = commands.add_parser("emit", help="write the standalone C header and source of a model")
     emit.add_argument("model", help="example name or model file")
-    emit.add_argument("--out", default=".", help="output directory (default: .)")
+    emit.add_argument("--out", default=".", help="output directory, created if missing (default: .)")
     emit.add_argument("--precision", choices=("double", "float"), default="double")
     emit.add_argument("--trig", choices=("libm", "inline"), default="libm",
                       help="sin/cos as libm calls (default) or inline polynomials (below 1 ulp, templates/trig.c.j2)")
     emit.add_argument("--outputs", help="comma-separated subset of mass_matrix,forcing,accel,rhs,energy,"
-                      "points,jacobian (default: all)")
+                      "points,jacobian,momentum (default: all that apply)")
     emit.add_argument("--methods", help="comma-separated integrators to include as step functions, "
-                      "e.g. rk4,symplectic_euler,implicit_midpoint (implicit ones need the jacobian output)")
+                      "e.g. rk4,symplectic_euler,implicit_midpoint (the outputs they need are added)")
     emit.add_argument("--fixed", action="append", metavar="NAME=VALUE",
                       help="fold a parameter into the code (repeatable, or comma-separated)")
     emit.set_defaults(run=cmd_emit)
@@ -159,9 +233,61 @@ def make_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def classify(error: Exception) -> tuple[int, str] | None:
+    """(exit code, one-line message) of an error the command line reports, or None for the rest
+    (bugs keep their traceback)."""
+    from .build import BuildError
+    from .simulate import SimulationError
+
+    if isinstance(error, UsageError):
+        return EXIT_USAGE, str(error)
+    if isinstance(error, KeyError):  # str() of a KeyError adds quotes around its message
+        return EXIT_USAGE, str(error.args[0] if error.args else error)
+    if isinstance(error, ValueError):  # the library's checks (ModelError, KernelError, ...) name the culprit
+        return EXIT_USAGE, str(error)
+    if isinstance(error, OSError) and not isinstance(error, BrokenPipeError):  # a file the user named
+        return EXIT_USAGE, f"{error.filename}: {error.strerror}" if error.filename else str(error)
+    if isinstance(error, MemoryError):
+        return EXIT_FAILED, f"out of memory: {error or 'MemoryError'}"
+    if isinstance(error, (RunFailed, BuildError, SimulationError)):
+        return EXIT_FAILED, str(error)
+    return None
+
+
+def run_command(argv) -> int:
+    """Parse and run; every reported error becomes one line on stderr, ``lagcodegen <command>:
+    error: <message>``, and an exit code (see the module doc)."""
+    argv = join_negative_numbers(argv)
+    debug = "--traceback" in argv or os.environ.get("LAGCODEGEN_DEBUG", "").strip() not in ("", "0")
+    prog = "lagcodegen"
+    try:
+        args = make_parser().parse_args(argv)
+        prog = f"lagcodegen {args.command}"
+        return args.run(args)
+    except Exception as error:  # re-raised below unless classify() knows it as a reported error
+        verdict = classify(error)
+        if verdict is None or debug:
+            raise
+        code, message = verdict
+        print(f"{getattr(error, 'prog', None) or prog}: error: {message}", file=sys.stderr)
+        return code
+
+
 def main(argv=None) -> int:
-    args = make_parser().parse_args(argv)
-    return args.run(args)
+    """Entry point of ``lagcodegen``: returns the exit code (see the module doc)."""
+    try:
+        return run_command(sys.argv[1:] if argv is None else list(argv))
+    except KeyboardInterrupt:
+        print("\ninterrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    except BrokenPipeError:
+        # The reader closed stdout (`lagcodegen derive X | head`): exit quietly. Point stdout at
+        # devnull so the flush at interpreter exit does not raise again (Python docs, "Note on SIGPIPE").
+        try:
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        except (OSError, ValueError, AttributeError):  # stdout is not a real file (e.g. captured in tests)
+            pass
+        return EXIT_BROKEN_PIPE
 
 
 if __name__ == "__main__":

@@ -1,84 +1,29 @@
-"""Command line: the simulate and sweep subcommands."""
+"""Stage: cli -> files, text. The simulate and sweep subcommands (their options in `cli_args`)."""
 from __future__ import annotations
 
 import argparse
 import math
-import sys
+import os
 import time
+from pathlib import Path
 
+from .cli_args import (
+    EXIT_FAILED,
+    EXIT_INTERRUPTED,
+    EXIT_OK,
+    SIMULATE_EPILOG,
+    SWEEP_EPILOG,
+    RunFailed,
+    UsageError,
+    add_run_arguments,
+    parse_assignments,
+    parse_grid,
+    positive_int,
+    read_table,
+)
 
-def parse_axis(item: str) -> tuple[str, "np.ndarray"]:
-    """``name=start:stop:count`` (linspace), ``name=start:stop:count:log`` (geomspace) or
-    ``name=v1,v2,...`` (explicit values) -> (name, values)."""
-    import numpy as np
-
-    name, sep, spec = item.partition("=")
-    name = name.strip()
-    if not sep or not name or not spec.strip():
-        raise SystemExit(f"lagcodegen: --grid {item!r} must look like name=start:stop:count[:log] or name=v1,v2,...")
-    if ":" not in spec:
-        try:
-            return name, np.array([float(v) for v in spec.split(",") if v.strip()] or [], dtype=float)
-        except ValueError:
-            raise SystemExit(f"lagcodegen: --grid {name!r}: {spec!r} is not a comma-separated list "
-                             "of numbers") from None
-    parts = [part.strip() for part in spec.split(":")]
-    log = parts[-1].lower() == "log"
-    numbers = parts[:-1] if log else parts
-    try:
-        start, stop, count = float(numbers[0]), float(numbers[1]), int(numbers[2])
-        if len(numbers) != 3:
-            raise ValueError
-    except (ValueError, IndexError):
-        raise SystemExit(f"lagcodegen: --grid {name!r}: {spec!r} must be start:stop:count or start:stop:count:log "
-                         "(numbers start and stop, an integer count)") from None
-    if count < 1:
-        raise SystemExit(f"lagcodegen: --grid {name!r}: count must be at least 1, got {count}")
-    if log and not (start > 0 and stop > 0):
-        raise SystemExit(f"lagcodegen: --grid {name!r}: a log axis needs positive start and stop, "
-                         f"got {start:g}:{stop:g}")
-    return name, (np.geomspace if log else np.linspace)(start, stop, count)
-
-
-def parse_grid(items) -> dict:
-    """Repeated ``--grid`` options -> {name: values}, in the given order (C order of members)."""
-    grid = {}
-    for item in items or []:
-        name, values = parse_axis(item)
-        if name in grid:
-            raise SystemExit(f"lagcodegen: --grid {name!r} is given twice")
-        if values.size == 0:
-            raise SystemExit(f"lagcodegen: --grid {name!r} has no values")
-        grid[name] = values
-    return grid
-
-
-def read_table(path: str) -> dict:
-    """A CSV member table (header row of names, one member per row) -> {name: values}."""
-    import csv
-
-    import numpy as np
-
-    try:
-        with open(path, newline="") as handle:
-            rows = [row for row in csv.reader(handle) if any(cell.strip() for cell in row)]
-    except OSError as error:
-        raise SystemExit(f"lagcodegen: --table {path}: {error.strerror}") from None
-    if len(rows) < 2:
-        raise SystemExit(f"lagcodegen: --table {path} needs a header row of names and at least one member row")
-    header = [cell.strip() for cell in rows[0]]
-    if len(set(header)) != len(header) or not all(header):
-        raise SystemExit(f"lagcodegen: --table {path}: the header {header} must name each column once")
-    table = {name: [] for name in header}
-    for line, row in enumerate(rows[1:], start=2):
-        if len(row) != len(header):
-            raise SystemExit(f"lagcodegen: --table {path} line {line} has {len(row)} values, the header {len(header)}")
-        for name, cell in zip(header, row):
-            try:
-                table[name].append(float(cell))
-            except ValueError:
-                raise SystemExit(f"lagcodegen: --table {path} line {line}: {name} = {cell!r} is not a number") from None
-    return {name: np.array(values) for name, values in table.items()}
+#: a trajectory may take at most this share of the machine's physical memory
+MEMORY_SHARE = 0.5
 
 
 def prepare_run(args, command: str, swept=()) -> tuple:
@@ -86,9 +31,6 @@ def prepare_run(args, command: str, swept=()) -> tuple:
 
     Returns (eom, fixed, params, x0) with plain ``{name: float}`` dicts.
     """
-    from .cli import parse_assignments  # here, not at the top: cli imports this module
-    from .simulate import step_count
-
     eom = derive_equations_of(args.model)
     fixed = parse_assignments(args.fixed, "--fixed")
     params = parse_assignments(args.param, "--param")
@@ -102,20 +44,76 @@ def prepare_run(args, command: str, swept=()) -> tuple:
                                    ("--x0", x0, states), ("--grid/--table", swept, free + states)):
         for name in names:
             if name in fixed and option != "--fixed":
-                raise SystemExit(f"lagcodegen {command}: {name!r} in {option} is fixed by --fixed; {where}")
+                raise UsageError(f"{name!r} in {option} is fixed by --fixed; {where}")
             if name not in allowed:
-                raise SystemExit(f"lagcodegen {command}: unknown name {name!r} in {option}; {where}")
+                raise UsageError(f"unknown name {name!r} in {option}; {where}")
     missing = [q.name for q in eom.q if q.name not in x0 and q.name not in swept]
     if missing and eom.m and not swept:
         x0 = consistent_x0(eom, x0, {**fixed, **params}, command)
     elif missing:
-        raise SystemExit(f"lagcodegen {command}: --x0 lacks coordinate(s) {', '.join(missing)} "
+        raise UsageError(f"--x0 lacks coordinate(s) {', '.join(missing)} "
                          f"(every coordinate needs a value; speeds default to 0)")
-    try:
-        step_count(0.0, args.t_end, args.h)
-    except ValueError as error:
-        raise SystemExit(f"lagcodegen {command}: --t-end/--h: {error}") from None
     return eom, fixed, params, x0
+
+
+def check_steps(args, n_state: int, members: int = 1, keep: bool = True) -> int:
+    """The number of steps, after checking that ``--t-end`` is a whole number of ``--h`` and that
+    the kept samples (``members`` trajectories of ``n_state`` values plus t, when ``keep``) fit in
+    `MEMORY_SHARE` of physical memory; the error says which ``--stride`` would fit."""
+    from .simulate import step_count
+
+    try:
+        steps = step_count(0.0, args.t_end, args.h)
+    except ValueError as error:
+        raise UsageError(f"--t-end {args.t_end:g} / --h {args.h:g}: {error}") from None
+    budget = physical_memory() * MEMORY_SHARE
+    row = members * (n_state + 1) * 8  # float64 state and time of every member per sample
+    n_out = steps // args.stride + 1
+    if keep and budget and n_out * row > budget:
+        stride = math.ceil(steps / max(budget // row - 1, 1))
+        raise UsageError(f"--t-end {args.t_end:g} / --h {args.h:g} is {steps} steps; with --stride {args.stride} "
+                         f"the {n_out} kept samples need {format_bytes(n_out * row)}, more than half this "
+                         f"machine's memory ({format_bytes(budget / MEMORY_SHARE)}): raise --stride "
+                         f"to at least {stride}")
+    return steps
+
+
+def physical_memory() -> float:
+    """Bytes of physical memory, or 0 when the platform does not say (then nothing is checked)."""
+    try:
+        return float(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES"))
+    except (AttributeError, ValueError, OSError):  # no sysconf (Windows) or no such name
+        return 0.0
+
+
+def format_bytes(size: float) -> str:
+    for unit in ("B", "KiB", "MiB", "GiB", "TiB"):
+        if size < 1024 or unit == "TiB":
+            return f"{size:.3g} {unit}"
+        size /= 1024
+    return f"{size:.3g} TiB"
+
+
+def check_output_file(path: str | None, option: str) -> None:
+    """Fail before any work when ``path`` (a file to write) is empty, a directory, in a missing
+    directory, or cannot be opened for writing (tried: os.access says yes to root everywhere)."""
+    if path is None:
+        return
+    if not path.strip():
+        raise UsageError(f"{option} is given an empty file name")
+    target = Path(path)
+    if target.is_dir():
+        raise UsageError(f"{option} {path}: is a directory; give a file name")
+    if not target.parent.is_dir():
+        raise UsageError(f"{option} {path}: {target.parent} is not an existing directory")
+    existed = target.exists()
+    try:
+        with open(target, "ab"):
+            pass
+    except OSError as error:
+        raise UsageError(f"{option} {path}: cannot write there ({error.strerror})") from None
+    if not existed:
+        target.unlink()
 
 
 def derive_equations_of(spec: str):
@@ -135,27 +133,24 @@ def consistent_x0(eom, x0: dict, values: dict, command: str) -> dict:
     try:
         q, u = consistent_state(eom, q_given, u_given, values=values or None)
     except ValueError as error:
-        raise SystemExit(f"lagcodegen {command}: --x0 is inconsistent with the constraints: {error}") from None
+        raise UsageError(f"--x0 is inconsistent with the constraints: {error}") from None
     state = dict(zip([s.name for s in eom.q], map(float, q))) | dict(zip([s.name for s in eom.u], map(float, u)))
-    print(f"consistent initial state: " + ", ".join(f"{k} = {v:.9g}" for k, v in state.items()))
+    print("consistent initial state: " + ", ".join(f"{k} = {v:.9g}" for k, v in state.items()))
     return state
 
 
 def compile_for(eom, method: str, fixed: dict, *, energy: bool, points: bool):
-    """The model compiled with one integrator and only the outputs the run records."""
+    """The model compiled with one integrator and only the outputs the run records (the outputs
+    the method needs, such as the Jacobian, are added by `compile_model`)."""
     from .build import BuildError
     from .pipeline import compile_model
-    from .schemes import needs_jacobian
-
-    from .cse import KernelError
 
     outputs = ["rhs"] + ["energy"] * (energy and eom.energy is not None) + ["points"] * (points and bool(eom.points))
-    outputs += ["jacobian"] * needs_jacobian([method])
     outputs += ["constraints", "multipliers"] if eom.m else []  # residuals, multipliers, --project
     try:
         return compile_model(eom, outputs=outputs, fixed=fixed or None, methods=(method,))
-    except (BuildError, KernelError) as error:
-        raise SystemExit(f"lagcodegen: building {eom.name} with {method} failed: {error}") from None
+    except BuildError as error:
+        raise RunFailed(f"building {eom.name} with {method} failed: {error}") from None
 
 
 def plot_coordinates(trajectory, title: str):
@@ -181,21 +176,20 @@ def cmd_simulate(args) -> int:
 
     from .simulate import parameter_vector, simulate
 
+    check_output_file(args.out, "--out")
+    check_output_file(args.plot, "--plot")
     eom, fixed, params, x0 = prepare_run(args, "simulate")
+    steps = check_steps(args, 2 * eom.n + bool(args.energy))
     if args.energy and eom.energy is None:
-        raise SystemExit(f"lagcodegen simulate: --energy: model {eom.name!r} has no energy expression")
+        raise UsageError(f"--energy: model {eom.name!r} has no energy expression")
     start = time.perf_counter()
     system = compile_for(eom, args.method, fixed, energy=args.energy, points=True)
     compile_time, start = time.perf_counter() - start, time.perf_counter()
-    try:
-        constrained = bool(system.layout.n_constraints)
-        run = simulate(system, x0, args.t_end, args.h, args.method, params=params, stride=args.stride,
-                       energy=args.energy, points=bool(system.layout.points), project=args.project,
-                       residuals=constrained, multipliers=constrained)
-    except ValueError as error:
-        raise SystemExit(f"lagcodegen simulate: {error}") from None
+    constrained = bool(system.layout.n_constraints)
+    run = simulate(system, x0, args.t_end, args.h, args.method, params=params, stride=args.stride,
+                   energy=args.energy, points=bool(system.layout.points), project=args.project,
+                   residuals=constrained, multipliers=constrained)
     elapsed = time.perf_counter() - start
-    steps = round(args.t_end / args.h)
     print(f"{eom.name}, {run.method}, h = {args.h:g}, {steps} steps to t = {args.t_end:g}: {run.message}")
     print(f"state at t = {run.t[-1]:.9g} (last kept sample): "
           + ", ".join(f"{n} = {v:.9g}" for n, v in zip(run.names, run.x[-1])))
@@ -227,7 +221,7 @@ def cmd_simulate(args) -> int:
     if args.plot:
         plot_coordinates(run, f"{eom.name}: {run.method}, h = {args.h:g} ({run.message})").savefig(args.plot, dpi=110)
         print(f"wrote {args.plot}")
-    return 0 if run.ok else 1
+    return EXIT_OK if run.ok else EXIT_FAILED
 
 
 def check_sweep_outputs(args, members: dict, eom) -> str:
@@ -235,22 +229,22 @@ def check_sweep_outputs(args, members: dict, eom) -> str:
     from .heatmap import product_axes, resolve_field
 
     coordinates = [q.name for q in eom.q]
-    field = args.field or f"q_max:{coordinates[0]}"
+    field = args.field if args.field is not None else f"q_max:{coordinates[0]}"
     try:
         resolve_field(field, coordinates, coordinates + [u.name for u in eom.u])
     except ValueError as error:
-        raise SystemExit(f"lagcodegen sweep: --field: {error}") from None
+        raise UsageError(f"--field: {error}") from None
     if field == "energy_error" and eom.energy is None:
-        raise SystemExit(f"lagcodegen sweep: --field energy_error: model {eom.name!r} has no energy expression")
+        raise UsageError(f"--field energy_error: model {eom.name!r} has no energy expression")
     if args.heatmap:
         if len(members) != 2:
-            raise SystemExit(f"lagcodegen sweep: --heatmap needs exactly two swept names, got {', '.join(members)}")
+            raise UsageError(f"--heatmap needs exactly two swept names, got {', '.join(members)}")
         if args.table:
             import numpy as np
             try:
                 product_axes(np.column_stack(list(members.values())), list(members))
             except ValueError as error:
-                raise SystemExit(f"lagcodegen sweep: --heatmap: {error}") from None
+                raise UsageError(f"--heatmap: {error}") from None
     return field
 
 
@@ -259,12 +253,12 @@ def connect(address: str):
     try:
         from dask.distributed import Client
     except ImportError:
-        raise SystemExit("lagcodegen sweep: --scheduler needs dask.distributed "
+        raise UsageError("--scheduler needs dask.distributed "
                          "(pip install 'lagcodegen[dask]')") from None
     try:
         return Client(address, timeout="10s")
     except (OSError, TimeoutError) as error:
-        raise SystemExit(f"lagcodegen sweep: cannot connect to the Dask scheduler at {address}: {error}") from None
+        raise UsageError(f"cannot connect to the Dask scheduler at {address}: {error}") from None
 
 
 def save_sweep(path, result, system, eom, args, params, x0) -> None:
@@ -322,36 +316,33 @@ def cmd_sweep(args) -> int:
     from .sweep import sweep
 
     if bool(args.grid) == bool(args.table):
-        raise SystemExit("lagcodegen sweep: give the members either with --grid (repeatable) or with --table")
+        raise UsageError("give the members either with --grid (repeatable) or with --table")
+    check_output_file(args.out, "--out")
+    check_output_file(args.heatmap, "--heatmap")
+    if args.scheduler is not None and not args.scheduler.strip():  # Client("") would start a local cluster
+        raise UsageError("--scheduler is given an empty address; give one like tcp://host:8786")
     members = parse_grid(args.grid) if args.grid else read_table(args.table)
     eom, fixed, params, x0 = prepare_run(args, "sweep", swept=members)
+    n_members = math.prod(len(v) for v in members.values()) if args.grid else len(next(iter(members.values())))
+    steps = check_steps(args, 2 * eom.n, n_members, keep=args.trajectories)
     for name in members:  # a swept coordinate needs no base value in --x0
         if name in [q.name for q in eom.q]:
             x0.setdefault(name, float(members[name][0]))
     field = check_sweep_outputs(args, members, eom)
-    if args.trajectories:
-        n_members = math.prod(len(v) for v in members.values()) if args.grid else len(next(iter(members.values())))
-        size = n_members * (round(args.t_end / args.h) // args.stride + 1) * 2 * eom.n * 8
-        if size > 2 ** 30:
-            print(f"lagcodegen sweep: warning: --trajectories will hold {size / 2 ** 30:.1f} GiB "
-                  "(raise --stride to keep fewer samples)", file=sys.stderr)
     start = time.perf_counter()
     system = compile_for(eom, args.method, fixed, energy=True, points=False)
     compile_time = time.perf_counter() - start
-    client = connect(args.scheduler) if args.scheduler else None
+    client = connect(args.scheduler) if args.scheduler is not None else None
     start = time.perf_counter()
     try:
         result = sweep(system, **({"grid": members} if args.grid else {"members": members}), x0=x0,
                        t_end=args.t_end, h=args.h, method=args.method, params=params,
                        trajectories=args.trajectories, stride=args.stride, threads=args.threads, client=client,
                        project=args.project)
-    except ValueError as error:
-        raise SystemExit(f"lagcodegen sweep: {error}") from None
     finally:
         if client is not None:
             client.close()
-    print_sweep_summary(result, field, time.perf_counter() - start, compile_time, round(args.t_end / args.h),
-                        args.method)
+    print_sweep_summary(result, field, time.perf_counter() - start, compile_time, steps, args.method)
     if not result.completed:
         print(f"interrupted: {int((result.status == -1).sum())} of {result.n_members} members not run; "
               "the finished ones are kept")
@@ -362,74 +353,7 @@ def cmd_sweep(args) -> int:
         title = f"{eom.name}: {field} ({args.method}, h = {args.h:g}, t_end = {args.t_end:g})"
         plot_heatmap(result, field, title=title).savefig(args.heatmap, dpi=110)
         print(f"wrote {args.heatmap}")
-    return 0 if result.completed else 130
-
-
-SIMULATE_EPILOG = """examples:
-  lagcodegen simulate double_pendulum --t-end 10 --h 1e-3 --x0 q1=1,q2=0.5 --energy --out run.npz --plot run.png
-  lagcodegen simulate elastic_pendulum --t-end 20 --h 1e-3 --x0 r=1.3,phi=0.3 --param k=60 --fixed g=9.81
-  lagcodegen simulate stiff_chain --t-end 1 --h 1e-4 --method implicit_midpoint --x0 x1=0.1,x2=0,x3=0
-
-The .npz holds t (n_out,), x (n_out, 2n), names, energy (with --energy), points and point_names
-(models with named points), status, status_name, message, model, method, h, t_end, stride, x0,
-parameters and p (free parameter values used), fixed_names and fixed_values.
-Exit code 0 when the run completed, 1 when it stopped early (singular mass matrix, divergence).
-"""
-
-SWEEP_EPILOG = """grid syntax (--grid, repeatable; members are the Cartesian product, the first axis slowest):
-  name=start:stop:count        count values, evenly spaced (numpy.linspace)
-  name=start:stop:count:log    count values, geometrically spaced (numpy.geomspace; start, stop > 0)
-  name=v1,v2,v3                these values
-A name is a free parameter (not one given with --fixed) or a state variable (q1, q1_d, ...).
---table FILE.csv instead gives one member per row under a header row of names.
-
-fields (--field, for the summary and the heatmap):
-  q_max:<coordinate>   max |q| over the run      x_final:<state>   final value
-  energy_error         max |E - E0| over the run blowup_time       time a failed member stopped
-  steps_done           steps completed           status            0 ok, 1 singular mass matrix,
-                                                                   2 non-finite state, 3 Newton failed,
-                                                                   5 singular constraints
-
-examples:
-  lagcodegen sweep elastic_pendulum --grid phi=0.05:1:20 --grid k=15:60:46 --x0 r=1.3 --t-end 60 \\
-      --h 5e-3 --field q_max:r --out sweep.npz --heatmap sweep.png
-  lagcodegen sweep double_pendulum --grid m2=0.5,1,2 --grid q1=0:3:31 --x0 q2=0 --t-end 10 \\
-      --h 1e-3 --trajectories --stride 100 --out dp.npz
-  lagcodegen sweep stiff_chain --grid k=0.5,1,2 --grid K=1e2:1e8:61:log --t-end 1 --h 1e-3 \\
-      --x0 x1=0.1,x2=0,x3=0 --field status --heatmap stability.png
-  lagcodegen sweep double_pendulum --table members.csv --x0 q1=1,q2=0 --t-end 5 --h 1e-3 \\
-      --scheduler tcp://127.0.0.1:8786
-
-The .npz holds every SweepResult array (values (n_members, n_columns), x_final, q_max, status,
-steps_done, blowup_time, energy_error, and t, trajectories with --trajectories), grid_<name> axes
-for a grid, columns, state_names, coordinate_names, completed, and the run's settings.
-Exit code 0, or 130 when interrupted (Ctrl-C; the finished members are still written).
-"""
-
-
-def add_run_arguments(parser) -> None:
-    """Options shared by simulate and sweep."""
-    from .schemes import SCHEMES
-
-    parser.add_argument("model", help="example name (see `lagcodegen examples`) or model file")
-    parser.add_argument("--t-end", type=float, required=True, metavar="T",
-                        help="end time (t starts at 0; T must be a whole number of steps H)")
-    parser.add_argument("--h", type=float, required=True, metavar="H", help="fixed step size")
-    parser.add_argument("--method", default="rk4", choices=tuple(SCHEMES),
-                        help="integrator, compiled in alone (default: rk4)")
-    parser.add_argument("--x0", action="append", metavar="NAME=VALUE",
-                        help="initial state, e.g. --x0 q1=1,q2=0.5; every coordinate needs a value "
-                             "(speeds default to 0)")
-    parser.add_argument("--param", action="append", metavar="NAME=VALUE",
-                        help="value of a free parameter (repeatable or comma-separated; "
-                             "others keep the model's defaults)")
-    parser.add_argument("--fixed", action="append", metavar="NAME=VALUE",
-                        help="fold a parameter into the C code as a constant (repeatable or comma-separated)")
-    parser.add_argument("--stride", type=int, default=1, metavar="K",
-                        help="keep every K-th state of a trajectory (default: 1)")
-    parser.add_argument("--project", action="store_true",
-                        help="models with holonomic constraints: project the state back onto them after every "
-                             "step (Baumgarte instead: --param baumgarte_alpha=10,baumgarte_beta=10)")
+    return EXIT_OK if result.completed else EXIT_INTERRUPTED
 
 
 def add_simulate_parser(commands) -> None:
@@ -455,7 +379,7 @@ def add_sweep_parser(commands) -> None:
     sweep.add_argument("--grid", action="append", metavar="NAME=SPEC",
                        help="one grid axis: name=start:stop:count[:log] or name=v1,v2,... (repeatable)")
     sweep.add_argument("--table", metavar="FILE.csv", help="explicit members: header of names, one row each")
-    sweep.add_argument("--threads", type=int, metavar="N", help="local worker threads (default: all cores)")
+    sweep.add_argument("--threads", type=positive_int, metavar="N", help="local worker threads (default: all cores)")
     sweep.add_argument("--scheduler", metavar="ADDRESS",
                        help="run on a Dask cluster, e.g. tcp://host:8786 (dask.distributed.Client)")
     sweep.add_argument("--trajectories", action="store_true",
