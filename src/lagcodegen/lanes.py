@@ -16,6 +16,11 @@ trig argument left that range (or was not finite) is recomputed afterwards by th
 member's result equals the scalar kernel's bit for bit: the tests use it to prove the lane
 driver's semantics.
 
+The first stage of each step also leaves every lane's pivots of M in a gauge, which the group
+loop hands lane by lane to the drivers' singularity monitor (``<prefix>_gauge_check``,
+``templates/monitor.c.j2``): a lane that steps across a singular configuration stops with the
+status and step the scalar sweep reports.
+
 Only explicit Runge-Kutta methods of unconstrained models get a lane stepper; everything else
 (implicit methods, symplectic Euler, projection onto constraints) stays on the scalar sweep.
 """

@@ -52,7 +52,7 @@ def stepper_context(system, names, real: str, methods: list) -> dict:
                "n_state_squared": N * N, "n_squared": n * n, "se_work": 3 * n * n + 5 * n + N, "has_energy": "energy" in system.outputs, "has_points": points > 0,
                "n_point_values": 3 * points, "work_size": N, "method_rows": [], "gauge_size": G,
                "pivot_jump": _literal(PIVOT_JUMP, real), "pivot_collapse": _literal(PIVOT_COLLAPSE[real], real),
-               "pivot_jump_text": f"{PIVOT_JUMP:g}", "pivot_collapse_text": f"{PIVOT_COLLAPSE[real]:g}",
+               "pivot_jump_text": f"{PIVOT_JUMP:g}", "pivot_collapse_text": f"{PIVOT_COLLAPSE[real]:.0e}".replace("e-0", "e-"),
                "n_pivots": n + system.n_constraints}
     if not methods:
         return context
