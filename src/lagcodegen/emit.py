@@ -15,7 +15,7 @@ import sympy as sp
 from .csyntax import EmitError, comment_text, literal, record
 from .cse import OUTPUT_KERNELS, ReducedKernel, ReducedSystem
 from .lanes import lane_context
-from .ldlt import ldlt_factor_lines, ldlt_solve_lines, ldlt_substitution_lines
+from .ldlt import ldlt_factor_lines, ldlt_substitution_lines
 from .model import TIME
 from .printer import DEFAULT_TRIG, TRIG_MODES, CPrinter, mangle
 from .stepper_context import hot_dynamics, stepper_context
@@ -191,9 +191,10 @@ def render_sources(system: ReducedSystem, precision: str = "double", model_name:
         if system.n_constraints and any(out in system.outputs for out in ("accel", "rhs")):
             m, prefix = system.n_constraints, names.prefix
             functions.append(record(
-                f"int {prefix}_dynamics({real} t, const {real} *x, const {real} *p, {real} *qd, {real} *ud)",
-                "qd and ud of the constrained system.",
-                [f"{real} lam[{m}];", f"return {prefix}_dynamics_constrained(t, x, p, qd, ud, lam, 0);"],
+                f"int {prefix}_dynamics({real} t, const {real} *x, const {real} *p, {real} *qd, {real} *ud, "
+                f"{real} *gauge)",
+                "qd and ud of the constrained system (gauge: see dynamics_constrained).",
+                [f"{real} lam[{m}];", f"return {prefix}_dynamics_constrained(t, x, p, qd, ud, lam, 0, gauge);"],
                 static=True))
     functions += [_function_record(system, system.kernel(_kernel_of(out)), names, printer, real, out)
                   for out in system.outputs]
@@ -318,11 +319,11 @@ def _function_record(system, kernel, names, printer, real, output):
             body.append(f"F[{j}] = {_print(printer, expr, f'F[{j}]')};")
         return record(f"void {prefix}_forcing({args}, {real} *F)", f"Forcing F(q, u, t), {n} values.", body)
     if output == "accel":
-        body = [f"{real} qd[{n}];", f"return {prefix}_dynamics(t, x, p, qd, ud);"]
+        body = [f"{real} qd[{n}];", f"return {prefix}_dynamics(t, x, p, qd, ud, 0);"]
         return record(f"int {prefix}_accel({args}, {real} *ud)",
                        "Generalized accelerations ud solving M ud = F; returns a status code.", body)
     if output == "rhs":
-        body = [f"return {prefix}_dynamics(t, x, p, xdot, xdot + {n});"]
+        body = [f"return {prefix}_dynamics(t, x, p, xdot, xdot + {n}, 0);"]
         return record(f"int {prefix}_rhs({args}, {real} *xdot)",
                        f"First-order right-hand side xdot = f(t, x), x = (q, u), {2 * n} values; "
                        "returns a status code. xdot must not alias x.", body)
@@ -341,7 +342,7 @@ def _function_record(system, kernel, names, printer, real, output):
     if output == "jacobian":
         return _jacobian_record(system, kernel, names, printer, real)
     if output == "multipliers":
-        body = [f"{real} qd[{n}], ud[{n}];", f"return {prefix}_dynamics_constrained(t, x, p, qd, ud, lam, Q);"]
+        body = [f"{real} qd[{n}], ud[{n}];", f"return {prefix}_dynamics_constrained(t, x, p, qd, ud, lam, Q, 0);"]
         return record(f"int {prefix}_multipliers({args}, {real} *lam, {real} *Q)",
                       f"Multipliers lam ({system.n_constraints}) and generalized constraint forces "
                       f"Q = A^T lam ({n}, or NULL): M ud = F - A^T lam.", body)
@@ -392,22 +393,37 @@ def _dynamics_records(system, names, printer, real) -> list:
     failure = f"{prefix}_pivot_failure(x)"
     m = system.n_constraints
     if not m:
-        body += ldlt_solve_lines(n, nonzero, real, failure)
+        factor, LD = ldlt_factor_lines(n, nonzero, real, failure)
+        body += factor + _gauge_lines(n) + ldlt_substitution_lines(n, LD, real, lambda i: f"F_{i}",
+                                                                    lambda i: f"ud[{i}]")
         body.append("return LCG_OK;")
-        signature = f"({real} t, const {real} *x, const {real} *p, {real} *qd, {real} *ud)"
-        doc = "K, M and F with shared temporaries, then M ud = F by LDL^T."
+        signature = f"({real} t, const {real} *x, const {real} *p, {real} *qd, {real} *ud, {real} *gauge)"
+        doc = ("K, M and F with shared temporaries, then M ud = F by LDL^T; gauge (or NULL) receives the "
+               f"{n} pivots of M (the singularity monitor of the drivers).")
         if not hot_dynamics(system):
             return [record(f"int {prefix}_dynamics{signature}", doc, body, static=True)]
         return [record(f"int {prefix}_dynamics_hot{signature}",
-                       doc[:-1] + ": inlined into every explicit Runge-Kutta stage.", body, hot=True),
+                       doc[:-1] + "; inlined into every explicit Runge-Kutta stage.", body, hot=True),
                 record(f"int {prefix}_dynamics{signature}", "The same, as one function for the other callers.",
-                       [f"return {prefix}_dynamics_hot(t, x, p, qd, ud);"], static=True)]
+                       [f"return {prefix}_dynamics_hot(t, x, p, qd, ud, gauge);"], static=True)]
     body += _constrained_solve_lines(kernel, printer, real, n, m, nonzero, failure, prefix)
     return [record(f"int {prefix}_dynamics_constrained({real} t, const {real} *x, const {real} *p, {real} *qd, "
-                  f"{real} *ud, {real} *lam, {real} *Q)",
+                  f"{real} *ud, {real} *lam, {real} *Q, {real} *gauge)",
                   "K, M, F, A = dphi/dq and gamma with shared temporaries; M ud + A^T lam = F, A ud = gamma "
-                  "by the range-space method (LDL^T of M, Cholesky of A M^-1 A^T); Q = A^T lam if not NULL.",
+                  "by the range-space method (LDL^T of M, Cholesky of A M^-1 A^T); Q = A^T lam if not NULL; "
+                  f"gauge (or NULL) receives the {n} pivots of M, the {m} of A M^-1 A^T and A "
+                  "(the singularity monitor of the drivers).",
                   body, static=True)]
+
+
+def _gauge_lines(n: int, indent: bool = True) -> list:
+    """Store the LDL^T pivots D_j of M into gauge[j] (when gauge is not NULL): the drivers' singularity
+    monitor compares them between accepted states (`stepper_context.gauge_context`)."""
+    stores = [f"gauge[{j}] = D_{j};" for j in range(n)]
+    if not indent:
+        return stores
+    return ["if (gauge) {  /* pivots of M, for the drivers' singularity monitor */"] + \
+        ["    " + line for line in stores] + ["}"]
 
 
 def _constrained_solve_lines(kernel, printer, real, n, m, nonzero, failure, prefix) -> list:
@@ -422,8 +438,12 @@ def _constrained_solve_lines(kernel, printer, real, n, m, nonzero, failure, pref
     body += ["    " + line for line in ldlt_substitution_lines(
         n, LD, real, lambda i: f"A[c * {n} + {i}]", lambda i: f"Y[{i * m} + c]")]
     body += ["}",
-             f"c = {prefix}_multipliers_solve(A, Y, z, C, lam);",
+             f"c = {prefix}_multipliers_solve(A, Y, z, C, lam, gauge ? gauge + {n} : 0);",
              "if (c != 1) return c == 0 ? LCG_SINGULAR_CONSTRAINTS : LCG_NONFINITE_STATE;",
+             "if (gauge) {  /* after the solves: a failed step leaves the last accepted gauge */"]
+    body += ["    " + line for line in _gauge_lines(n, indent=False)]
+    body += [f"    for (i = 0; i < {m * n}; ++i) gauge[{n + m} + i] = A[i];",
+             "}",
              f"for (i = 0; i < {n}; ++i) {{",
              f"    {real} acc = z[i];",
              f"    for (c = 0; c < {m}; ++c) acc -= Y[i * {m} + c] * lam[c];",
@@ -445,7 +465,7 @@ def _jacobian_record(system, kernel, names, printer, real) -> dict:
     n, prefix = len(system.q), names.prefix
     size = 2 * n
     body = [f"{real} qd[{n}];", f"{real} ud[{n}];", f"{real} B[{n}][{size}];", "int c;",
-            f"const int status = {prefix}_dynamics(t, x, p, qd, ud);",
+            f"const int status = {prefix}_dynamics(t, x, p, qd, ud, 0);",
             "if (status != LCG_OK) return status;"]
     body += _body_head(kernel, names, printer, real, touches_state=True)
     M = _results(kernel, "M")

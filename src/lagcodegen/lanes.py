@@ -16,6 +16,11 @@ trig argument left that range (or was not finite) is recomputed afterwards by th
 member's result equals the scalar kernel's bit for bit: the tests use it to prove the lane
 driver's semantics.
 
+The first stage of each step also leaves every lane's pivots of M in a gauge, which the group
+loop hands lane by lane to the drivers' singularity monitor (``<prefix>_gauge_check``,
+``templates/monitor.c.j2``): a lane that steps across a singular configuration stops with the
+status and step the scalar sweep reports.
+
 Only explicit Runge-Kutta methods of unconstrained models get a lane stepper; everything else
 (implicit methods, symplectic Euler, projection onto constraints) stays on the scalar sweep.
 """
@@ -93,6 +98,7 @@ def lane_context(system, names, real: str, methods: list, lanes: int, trig: str 
         "n_state_lanes": 2 * n * lanes, "n_lanes": n * lanes,
         "n_param_lanes": max(1, len(system.free_parameters)) * lanes,
         "n_params_free": len(system.free_parameters), "sweep_lanes_decl": decl,
+        "lane_history": 2 * n * lanes, "lane_history_per_lane": 2 * n,  # the monitor: previous, initial pivots
         "lane_prototype": _record(decl, f"Many independent members, {lanes} side by side (explicit Runge-Kutta "
                                         "methods only; returns LCG_UNKNOWN_METHOD for others).", []),
     }
@@ -147,6 +153,7 @@ def _dynamics_lines(system, names, printer, real: str, lanes: int) -> list:
         lines += [f"xdot[{j * lanes} + lcg_lane] = {_print(printer, expr, f'qd[{j}]')};"
                   for (j, _), expr in blocks["K"].items()]
     factor, LD = ldlt_factor_lines(n, {jk for jk, e in M.items() if e != 0}, real, flag=_SINGULAR)
+    factor += [f"gauge[{j * lanes} + lcg_lane] = D_{j};" for j in range(n)]  # the singularity monitor's pivots
     lines += factor + ldlt_substitution_lines(n, LD, real, lambda i: f"F_{i}",
                                               lambda i: f"xdot[{(n + i) * lanes} + lcg_lane]")
     lines.append(f"lcg_redo[lcg_lane] = {_SINGULAR} + {_WIDE};")
@@ -159,7 +166,8 @@ def _stage_lines(scheme, prefix: str, size: int) -> list:
     name = f"{prefix}_{scheme.name}"
 
     def evaluate(i, state):
-        return [f"{prefix}_lanes_dynamics(t + {name}_c[{i}] * h, {state}, p, k + {i * size}, stage);",
+        gauge = "gauge" if i == 0 else "spare"  # stage 0 is at x: its pivots are x's
+        return [f"{prefix}_lanes_dynamics(t + {name}_c[{i}] * h, {state}, p, k + {i * size}, stage, {gauge});",
                 f"{prefix}_lanes_first_failure(code, stage);"]
 
     return tableau_stage_lines(scheme, prefix, size, evaluate, "xn[m] = x[m] + h * ")

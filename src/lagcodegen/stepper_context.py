@@ -12,6 +12,17 @@ from .csyntax import EmitError, literal as _literal, record as _record
 NEWTON_TOLERANCE = {"double": 1e-13, "float": 1e-5}
 NEWTON_MAX_ITERATIONS = 30
 
+#: The drivers' singularity monitor (``<prefix>_gauge_check`` in templates/steppers.c.j2) reads the
+#: pivots the solves already produce at each accepted state: the LDL^T pivots of M and, with
+#: constraints, the Cholesky pivots of A M^-1 A^T. A pivot that changes by more than PIVOT_JUMP
+#: (either way) between two accepted states means the step jumped across, or onto, a singular
+#: configuration it did not resolve: in normal runs of the catalog models a pivot changes by at most
+#: 1.7x per step (slider_crank_minimal spinning up at h = 1e-3; tests/numeric/test_singular_crossing.py).
+PIVOT_JUMP = 1e2
+#: ... and a pivot below PIVOT_COLLAPSE times its value at the run's first state is a singular
+#: configuration approached slowly (the landing check of the solves only asks for pivots > 0).
+PIVOT_COLLAPSE = {"double": 1e-8, "float": 1e-4}
+
 
 #: a dynamics kernel this small (ops after CSE) is inlined into every explicit Runge-Kutta stage,
 #: so that gcc keeps the stage values in registers: with the steppers' local parameter copy, the
@@ -30,7 +41,7 @@ def stepper_context(system, names, real: str, methods: list) -> dict:
     from .schemes import KIND_EXPLICIT, KIND_IMPLICIT, get_scheme, scheme_kind
 
     n, prefix = len(system.q), names.prefix
-    N = 2 * n
+    N, G = 2 * n, gauge_size(system)
     points = len(system.point_names) if "points" in system.outputs else 0
     context = {"has_steppers": bool(methods), "tableaux": [], "methods": [], "exported": [],
                "explicit_steppers": [],
@@ -39,7 +50,10 @@ def stepper_context(system, names, real: str, methods: list) -> dict:
                "one": _literal(1, real), "fsuffix": "f" if real == "float" else "",
                "newton_tolerance": _literal(NEWTON_TOLERANCE[real], real), "newton_max": NEWTON_MAX_ITERATIONS,
                "n_state_squared": N * N, "n_squared": n * n, "se_work": 3 * n * n + 5 * n + N, "has_energy": "energy" in system.outputs, "has_points": points > 0,
-               "n_point_values": 3 * points, "work_size": N, "method_rows": []}
+               "n_point_values": 3 * points, "work_size": N, "method_rows": [], "gauge_size": G,
+               "pivot_jump": _literal(PIVOT_JUMP, real), "pivot_collapse": _literal(PIVOT_COLLAPSE[real], real),
+               "pivot_jump_text": f"{PIVOT_JUMP:g}", "pivot_collapse_text": f"{PIVOT_COLLAPSE[real]:.0e}".replace("e-0", "e-"),
+               "n_pivots": n + system.n_constraints}
     if not methods:
         return context
     if "rhs" not in system.outputs and "accel" not in system.outputs:
@@ -54,9 +68,10 @@ def stepper_context(system, names, real: str, methods: list) -> dict:
                   "part": 1 if kind == KIND_EXPLICIT else 2}
         if kind == KIND_EXPLICIT:
             context["tableaux"].append(_tableau_record(scheme, real))
-            record["work"] = (scheme.stages + 1) * N
-            record["call"] = f"{prefix}_{scheme.name}_step(*t, x, p, h, work)"
-            record["call_in_driver"] = f"{prefix}_{scheme.name}_step(t, x, p, h, scratch)"
+            record["work"] = (scheme.stages + 1) * N + G
+            tail = record["gauge_offset"] = record["work"] - G
+            record["call"] = f"{prefix}_{scheme.name}_step(*t, x, p, h, work, work + {tail})"
+            record["call_in_driver"] = f"{prefix}_{scheme.name}_step(t, x, p, h, scratch, scratch + {tail})"
             dynamics = f"{prefix}_dynamics_hot" if hot_dynamics(system) else f"{prefix}_dynamics"
             context["explicit_steppers"].append(
                 {"name": scheme.name, "title": scheme.title or scheme.name, "order": scheme.order,
@@ -65,15 +80,17 @@ def stepper_context(system, names, real: str, methods: list) -> dict:
             context["tableaux"].append(_tableau_record(scheme, real))
             s = scheme.stages
             arrays = f"{prefix}_{scheme.name}_a, {prefix}_{scheme.name}_b, {prefix}_{scheme.name}_c"
-            record["work"] = 3 * s * N + (s * N) ** 2 + N * N + N
-            record["call"] = f"{prefix}_irk_step({s}, {arrays}, *t, x, p, h, work)"
+            record["work"] = 3 * s * N + (s * N) ** 2 + N * N + N + G
+            tail = record["gauge_offset"] = record["work"] - G
+            record["call"] = f"{prefix}_irk_step({s}, {arrays}, *t, x, p, h, work, work + {tail})"
             record["call_in_driver"] = f"{prefix}_step_{scheme.name}(&step_t, x, p, h, scratch)"
             context["has_implicit"] = True
         else:
             if "momentum" not in system.outputs:
                 raise EmitError(f"method {name!r} needs the 'momentum' output; add it to outputs")
-            record["work"] = 3 * n * n + 5 * n + N
-            record["call"] = f"{prefix}_symplectic_euler_step(*t, x, p, h, work)"
+            record["work"] = 3 * n * n + 5 * n + N + G
+            tail = record["gauge_offset"] = record["work"] - G
+            record["call"] = f"{prefix}_symplectic_euler_step(*t, x, p, h, work, work + {tail})"
             record["call_in_driver"] = f"{prefix}_step_{scheme.name}(&step_t, x, p, h, scratch)"
             context["has_symplectic_euler"] = True
         context["methods"].append(record)
@@ -82,8 +99,9 @@ def stepper_context(system, names, real: str, methods: list) -> dict:
                                        "work": record["work"]})
         context["exported"].append(_record(
             f"int {prefix}_step_{scheme.name}({real} *t, {real} *x, const {real} *p, {real} h, {real} *work)",
-            f"One step of {record['title']} (order {scheme.order}); work holds {record['work']} values.", []))
-    context["work_size"] = N + max(m["work"] for m in context["methods"])
+            f"One step of {record['title']} (order {scheme.order}); work holds {record['work']} values, "
+            f"the last {G} receive the pivots (gauge) of the state x it started from.", []))
+    context["work_size"] = N + 2 * G + max(m["work"] for m in context["methods"])
     decl = (f"int {prefix}_simulate(int method, {real} t0, const {real} *x0, const {real} *p, {real} h, "
             f"long n_steps, long stride, int project, {real} *t_out, {real} *x_out, {real} *energy_out, "
             f"{real} *points_out, {real} *residuals_out, {real} *multipliers_out, {real} *work, "
@@ -100,6 +118,13 @@ def stepper_context(system, names, real: str, methods: list) -> dict:
     context["records_multipliers"] = "multipliers" in system.outputs
     context["exported"].append(_record(sweep, "Many independent members, one after another.", []))
     return context
+
+
+def gauge_size(system) -> int:
+    """Values of one singularity gauge: the n pivots of M, then (constrained) the m pivots of
+    A M^-1 A^T and the m x n constraint Jacobian A (its orientation between steps)."""
+    n, m = len(system.q), system.n_constraints
+    return n + m + m * n
 
 
 def _tableau_record(scheme, real: str) -> dict:
@@ -119,8 +144,12 @@ def _explicit_stage_lines(scheme, prefix: str, n: int, dynamics: str) -> list:
     N, name = 2 * n, f"{prefix}_{scheme.name}"
 
     def evaluate(i, state):
-        return [f"status = {dynamics}(t + {name}_c[{i}] * h, {state}, p, k + {i * N}, k + {i * N + n});",
+        gauge = "gauge" if i == 0 else "0"  # stage 0 is evaluated at x itself: its pivots are x's
+        return [f"status = {dynamics}(t + {name}_c[{i}] * h, {state}, p, k + {i * N}, k + {i * N + n}, {gauge});",
                 "if (status != LCG_OK) return status;"]
+
+    if not needed_stages(scheme)[0]:
+        raise EmitError(f"method {scheme.name!r}: its first stage is never used, so no stage reads the pivots of x")
 
     lines = [f"(void){name}_a;  /* all zero for one-stage methods */"] if not any(any(r) for r in scheme.a) else []
     return lines + tableau_stage_lines(scheme, prefix, N, evaluate, "x[m] += h * ") + ["return LCG_OK;"]
