@@ -4,6 +4,9 @@ checks and the catalog examples compiled once per session.
 - ``require_tool(name)`` skips a test when an external program (cmake, arm-none-eabi-gcc, ...)
   is missing, but FAILS it when the environment variable ``CI`` is set: on CI a missing
   toolchain is a broken image, not a reason to go green.
+- Under ``CI`` a session in which a toolchain test (marked ``compiler``, or in
+  ``tests/native_build/``) was skipped anyway, by any other route (a ``skipif``, a bare
+  ``pytest.skip``), fails: the summary lists those tests and the exit status is 1.
 - ``compiled_example(name, precision="double", ...)`` compiles a catalog example through
   ``lagcodegen.pipeline.compile_model`` once per session (cached by name, precision, outputs,
   fixed parameters and methods) into an isolated cache dir under ``tmp_path_factory``,
@@ -17,6 +20,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
+#: pytester runs the inner sessions that test the CI hooks below (tests/native_build/test_ci_skips.py)
+pytest_plugins = ("pytester",)
 
 #: every random number in the tests derives from this seed
 SEED = 20240611
@@ -49,15 +55,60 @@ def rng() -> np.random.Generator:
     return np.random.default_rng(SEED)
 
 
+def in_ci() -> bool:
+    """True when the environment variable ``CI`` is set to anything but "", 0, false or no."""
+    return os.environ.get("CI", "").strip().lower() not in ("", "0", "false", "no")
+
+
 def require_tool(name: str) -> str:
     """Full path of the program ``name``; skip if missing, or fail when ``$CI`` is set."""
     path = shutil.which(name)
     if path is None:
         message = f"required tool {name!r} not found on PATH"
-        if os.environ.get("CI", "").strip().lower() not in ("", "0", "false", "no"):
+        if in_ci():
             pytest.fail(f"{message} (CI is set: a missing tool is an error, not a skip)")
         pytest.skip(message)
     return path
+
+
+# --- under CI, a skipped toolchain test fails the session ----------------------------------
+#: the folder of the toolchain tests: every test in it counts, marked ``compiler`` or not
+TOOLCHAIN_FOLDER = "native_build"
+
+
+class ToolchainSkipGuard:
+    """Under ``CI``, fails the session when a toolchain test was skipped.
+
+    ``require_tool`` already fails instead of skipping on CI, but a ``skipif`` or a bare
+    ``pytest.skip`` in a toolchain test would still turn a broken CI image green.
+    """
+
+    def __init__(self):
+        self.skipped = []  # "nodeid: reason"
+
+    @staticmethod
+    def is_toolchain_test(report) -> bool:
+        return "compiler" in report.keywords or TOOLCHAIN_FOLDER in Path(report.nodeid.split("::")[0]).parts
+
+    def pytest_runtest_logreport(self, report):
+        # an expected failure (xfail) is reported as skipped too: it is not a skip here
+        if report.skipped and not hasattr(report, "wasxfail") and self.is_toolchain_test(report):
+            reason = report.longrepr[2] if isinstance(report.longrepr, tuple) else str(report.longrepr)
+            self.skipped.append(f"{report.nodeid}: {reason}")
+
+    def pytest_sessionfinish(self, session, exitstatus):
+        if in_ci() and self.skipped and exitstatus == pytest.ExitCode.OK:
+            session.exitstatus = pytest.ExitCode.TESTS_FAILED
+
+    def pytest_terminal_summary(self, terminalreporter):
+        if in_ci() and self.skipped:
+            terminalreporter.section("toolchain tests skipped under CI", sep="=", red=True, bold=True)
+            for line in self.skipped:
+                terminalreporter.line(f"SKIPPED (fails the session: CI is set) {line}", red=True)
+
+
+def pytest_configure(config):
+    config.pluginmanager.register(ToolchainSkipGuard(), "lagcodegen-toolchain-skip-guard")
 
 
 @pytest.fixture(name="require_tool", scope="session")

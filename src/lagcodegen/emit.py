@@ -169,7 +169,7 @@ def render_sources(system: ReducedSystem, precision: str = "double", model_name:
     trig : {"libm", "inline"}
         ``"libm"`` (default): plain ``sin``/``cos`` calls; ``"inline"``: the inline functions of
         ``templates/trig.c.j2`` (below 1 ulp, sin and cos of one angle share the reduction).
-        The template is included whenever a kernel has a sine or cosine, in both modes.
+        The source defines only the functions of that template it calls.
     lanes : int
         0: no lane kernel. Else also ``<prefix>_sweep_lanes``, which runs ``lanes`` members side by
         side for the explicit methods (see `lanes.py`); host use, it is never in ``generated/``.
@@ -183,7 +183,7 @@ def render_sources(system: ReducedSystem, precision: str = "double", model_name:
         raise EmitError(f"trig must be one of {TRIG_MODES}, got {trig!r}")
     model_name = model_name or system.name
     names = _names(system, model_name)
-    printer = CPrinter(precision=precision, names=names.symbols, trig=trig)
+    printer = _KernelPrinter(precision=precision, names=names.symbols, trig=trig)
     real = precision
     functions = []
     if any(out in system.outputs for out in ("accel", "rhs", "multipliers")):
@@ -216,7 +216,7 @@ def render_sources(system: ReducedSystem, precision: str = "double", model_name:
                      tuple(m["name"] for m in steppers["methods"]))
     context = _context(system, names, layout, functions, real) | steppers
     context["prototypes"] = context["prototypes"] + stepper_prototypes
-    context |= _trig_context(printer)
+    context |= _trig_context(printer, steppers)
     context["needs_spd"] = bool((context["has_constraints"] and (context["has_dynamics"]
                                                                  or context["has_constraint_terms"]))
                                 or context["has_symplectic_euler"])
@@ -231,10 +231,31 @@ def render_sources(system: ReducedSystem, precision: str = "double", model_name:
                     source=source, cdef=cdef)
 
 
-def _trig_context(printer: CPrinter) -> dict:
-    """templates/trig.c.j2 is included whenever a kernel has a sine or cosine, also with
-    trig="libm": the integrators may call its branch-free forms."""
-    return {"has_trig": printer.printed_trig} | _trig_template_context(printer.precision)
+class _KernelPrinter(CPrinter):
+    """A `CPrinter` that also records which of sin and cos it printed (``trig_calls``), so the
+    source defines exactly the inline functions it calls (`_trig_context`)."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.trig_calls = set()
+
+    def _print_trig(self, expr, name: str) -> str:
+        self.trig_calls.add(name)
+        return super()._print_trig(expr, name)
+
+
+def _trig_context(printer: _KernelPrinter, steppers: dict) -> dict:
+    """Which functions of templates/trig.c.j2 the source calls; it defines those and no others,
+    since clang rejects an unused static function under -Wall -Werror (gcc does not warn for
+    static inline ones). The kernels call lcg_sin/lcg_cos (float: lcg_sinf/lcg_cosf) only with
+    trig="inline", and those call the branch-free _fast forms, as do the lane kernel's sin and
+    cos wrappers (templates/lanes.c.j2, lane_trig="fast"). Nothing else does: with trig="libm"
+    and no lanes (the committed generated/ files) the template is left out."""
+    calls = printer.trig_calls if printer.trig == "inline" else set()
+    emit = {f"emit_{name}": name in calls for name in ("sin", "cos")}
+    emit |= {f"emit_{name}_fast": name in calls or steppers.get(f"lane_uses_{name}", False)
+             for name in ("sin", "cos")}
+    return {"has_trig": any(emit.values())} | emit | _trig_template_context(printer.precision)
 
 
 def _trig_template_context(precision: str) -> dict:
@@ -244,10 +265,12 @@ def _trig_template_context(precision: str) -> dict:
 
 
 def trig_source(precision: str = "double") -> str:
-    """The C text of ``templates/trig.c.j2`` alone (needs ``<math.h>``), e.g. to test it."""
+    """The C text of ``templates/trig.c.j2`` alone, every function in it (needs ``<math.h>``),
+    e.g. to test it."""
     if precision not in PRECISIONS:
         raise EmitError(f"precision must be one of {PRECISIONS}, got {precision!r}")
-    return _environment().get_template("trig.c.j2").render(_trig_template_context(precision))
+    every = {"emit_sin": True, "emit_cos": True, "emit_sin_fast": True, "emit_cos_fast": True}
+    return _environment().get_template("trig.c.j2").render(every | _trig_template_context(precision))
 
 
 def _kernel_of(output: str) -> str:

@@ -48,11 +48,14 @@ class LanePrinter(CPrinter):
     def __init__(self, precision: str, names: dict, prefix: str):
         super().__init__(precision=precision, names=names)
         self._prefix = prefix
+        self.trig_calls = set()  # "sin", "cos": the lane wrappers to define (and no others)
 
     def _print_sin(self, expr):
+        self.trig_calls.add("sin")
         return f"{self._prefix}_lane_sin({self._print(expr.args[0])}, &{_WIDE})"
 
     def _print_cos(self, expr):
+        self.trig_calls.add("cos")
         return f"{self._prefix}_lane_cos({self._print(expr.args[0])}, &{_WIDE})"
 
 
@@ -107,6 +110,10 @@ def lane_context(system, names, real: str, methods: list, lanes: int, trig: str 
         energy = {(i, j): e for (b, i, j), e in kernel.results if b == "E"}[(0, 0)]
         context["lane_energy"] = _head(kernel, names, printer, real, lanes) + [
             f"lcg_energy[lcg_lane] = {_print(printer, energy, 'energy')};", f"lcg_redo[lcg_lane] = {_WIDE};"]
+    # only the wrappers (and trig.c.j2 forms, see emit._trig_context) the lane code calls: an
+    # unused static function fails clang's -Wall -Werror
+    calls = printer.trig_calls if trig == "fast" else set()
+    context |= {"lane_uses_sin": "sin" in calls, "lane_uses_cos": "cos" in calls}
     return context
 
 
