@@ -1,10 +1,10 @@
 """Float builds of the constrained systems: they compile for a Cortex-M4F (single-precision FPU)
-with the flags of tests/build/test_cortex_m.py (no warnings, no double promotion, no mutable
+with the flags of tests/native_build/test_cortex_m.py (no warnings, no double promotion, no mutable
 static state, nothing but libm), and the host float build keeps the constraints to float
 precision with projection.
 
 The constrained systems are not in ``catalog.EXAMPLES`` (regenerate asks every example for the
-jacobian output, which they lack), so tests/build/test_cortex_m.py does not see them; this file
+jacobian output, which they lack), so tests/native_build/test_cortex_m.py does not see them; this file
 renders their float C itself.
 """
 from __future__ import annotations
