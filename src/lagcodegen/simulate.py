@@ -7,15 +7,18 @@ from __future__ import annotations
 
 import enum
 import math
-import operator
+import numbers
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import lru_cache
 from typing import Mapping
 
 import numpy as np
 
 from .build import CompiledSystem
+from .run_arguments import (check_output_size, flag, method_name, output_bytes, positive_int,  # noqa: F401
+                            real_number, real_values, step_count, stride_within)
+from .drift import DRIFT_TOLERANCE, ConstraintDriftWarning, resolve_drift_tolerance, warn_if_drifted  # noqa: F401
 from .schemes import KIND_EXPLICIT, KIND_SYMPLECTIC_EULER, get_scheme, scheme_kind
 
 
@@ -32,6 +35,15 @@ class Status(enum.IntEnum):
     @property
     def message(self) -> str:
         return _MESSAGES[self]
+
+    # IntEnum prints its value ("0"); print the name, and keep numeric format specs numeric
+    def __str__(self) -> str:
+        return self.name
+
+    def __format__(self, spec: str) -> str:
+        if spec and spec[-1] in "bcdeEfFgGnoxX%":
+            return format(int(self), spec)
+        return format(self.name, spec)
 
 
 _MESSAGES = {
@@ -112,6 +124,12 @@ class Trajectory:
             raise SimulationError(self.message, self)
         return self
 
+    def __repr__(self) -> str:
+        where = "" if self.ok else f" at step {self.failed_step} (t = {self.failed_time:.6g})"
+        span = f"t = {self.t[0]:.6g} .. {self.t[-1]:.6g}" if len(self.t) else "no samples"
+        return (f"Trajectory(method={self.method!r}, h={self.h:g}, {len(self.t)} samples, {span}, "
+                f"state=({', '.join(self.names)}), status={self.status.name}{where})")
+
     def __getitem__(self, name: str) -> np.ndarray:
         """The column of state variable ``name`` (e.g. ``traj["q1"]``), shape (n_out,)."""
         try:
@@ -123,7 +141,9 @@ class Trajectory:
 def parameter_vector(system: CompiledSystem, params: Mapping | None = None) -> np.ndarray:
     """Free-parameter values in ``p[]`` order: ``params`` by name, else the model's defaults."""
     layout = system.layout
-    given = {(k.name if hasattr(k, "name") else str(k)): float(v) for k, v in (params or {}).items()}
+    if params is not None and not isinstance(params, Mapping):
+        raise TypeError(f"params must be a mapping name -> value, got {type(params).__name__}")
+    given = {(k.name if hasattr(k, "name") else str(k)): v for k, v in (params or {}).items()}
     fixed = {name for name, _ in layout.fixed}
     for name in given:
         if name in fixed:
@@ -131,6 +151,7 @@ def parameter_vector(system: CompiledSystem, params: Mapping | None = None) -> n
                              f"{', '.join(layout.parameters) or 'none'}")
         if name not in layout.parameters:
             raise ValueError(f"unknown parameter {name!r}; free parameters: {', '.join(layout.parameters) or 'none'}")
+    given = dict(zip(given, real_values(given.values(), given, "parameter")))
     values = dict(layout.defaults) | given
     missing = [name for name in layout.parameters if name not in values]
     if missing:
@@ -154,13 +175,22 @@ def initial_state(system: CompiledSystem, x0) -> np.ndarray:
         missing = [c for c in layout.coordinates if c not in {str(k) for k in x0}]
         if missing:
             raise ValueError(f"initial state lacks coordinate(s) {', '.join(missing)}")
-        x0 = [float(x0.get(name, 0.0)) for name in names]
-    x = np.ascontiguousarray(np.asarray(x0, dtype=_dtype(system)).ravel())
-    if x.shape != (len(names),):
-        raise ValueError(f"initial state needs {len(names)} values ({', '.join(names)}), got {x.size}")
-    bad = [name for name, value in zip(names, x) if not np.isfinite(value)]
+        x0 = [x0.get(name, 0.0) for name in names]
+    elif isinstance(x0, (str, bytes)) or not np.iterable(x0):
+        raise TypeError(f"x0 must be a sequence of {len(names)} numbers ({', '.join(names)}) or a mapping "
+                        f"name -> value, got {x0!r}")
+    values = list(np.asarray(x0, dtype=object).ravel()) if np.ndim(x0) > 1 else list(x0)
+    if len(values) != len(names) or np.ndim(x0) > 1:
+        raise ValueError(f"initial state needs {len(names)} values ({', '.join(names)}), got "
+                         f"{len(values)}{' in shape ' + str(np.shape(x0)) if np.ndim(x0) > 1 else ''}")
+    bad = [name for name, value in zip(names, values) if isinstance(value, numbers.Real)
+           and not isinstance(value, bool) and not math.isfinite(float(value))]
     if bad:
-        raise ValueError(f"initial state is not finite in {', '.join(bad)}: {x}")
+        raise ValueError(f"initial state is not finite in {', '.join(bad)}: {values}")
+    x = np.array(real_values(values, names, "initial state variable"), dtype=_dtype(system))
+    bad = [name for name, value in zip(names, x) if not np.isfinite(value)]
+    if bad:  # finite doubles beyond the float range
+        raise ValueError(f"initial state is not finite in {', '.join(bad)} at {layout.precision} precision")
     return x
 
 
@@ -173,36 +203,11 @@ def _pointer(system: CompiledSystem, array: np.ndarray):
     return system.ffi.from_buffer(ctype, array, require_writable=array.flags.writeable)
 
 
-def positive_int(value, what: str) -> int:
-    """``value`` as a positive int (numpy integers welcome, bools and floats not)."""
-    if isinstance(value, bool):
-        raise ValueError(f"{what} must be a positive integer, got {value!r}")
-    try:
-        number = operator.index(value)
-    except TypeError:
-        raise ValueError(f"{what} must be a positive integer, got {value!r}") from None
-    if number < 1:
-        raise ValueError(f"{what} must be a positive integer, got {value!r}")
-    return number
-
-
-def step_count(t0: float, t_end: float, h: float) -> int:
-    """Number of steps of size h from t0 to t_end; t_end - t0 must be a multiple of h."""
-    if not (h > 0 and math.isfinite(h)):
-        raise ValueError(f"step h must be positive and finite, got {h}")
-    span = t_end - t0
-    if not span > 0:
-        raise ValueError(f"t_end ({t_end}) must be greater than t0 ({t0})")
-    n = int(round(span / h))
-    if n < 1 or abs(n * h - span) > 1e-9 * max(1.0, abs(span)):
-        raise ValueError(f"t_end - t0 = {span} is not a whole number of steps h = {h}")
-    return n
-
-
 def simulate(system: CompiledSystem, x0, t_end: float, h: float, method: str = "rk4", *,
              params: Mapping | None = None, t0: float = 0.0, stride: int = 1, energy: bool = False,
              points: bool = False, check_stability: bool = True, project: bool = False,
-             residuals: bool = False, multipliers: bool = False) -> Trajectory:
+             residuals: bool = False, multipliers: bool = False, drift_tolerance: float | None = None,
+             max_output_bytes: int | None = None) -> Trajectory:
     """Integrate with a fixed step, the whole loop in C.
 
     Parameters
@@ -211,13 +216,14 @@ def simulate(system: CompiledSystem, x0, t_end: float, h: float, method: str = "
         From `pipeline.compile_model` (or `build.build_module`), with ``method`` compiled in.
     x0 : sequence (2n,) or mapping name -> value
     t_end, h, t0 : float
-        ``t_end - t0`` must be a whole number of steps.
+        ``t_end - t0`` must be a whole number of steps, at most 2^63 - 1 of them.
     method : str
         A name from ``system.layout.methods``.
     params : mapping name -> float, optional
         Free parameter values; the model's defaults fill the rest.
     stride : int
-        Keep every stride-th sample: ``n_steps // stride + 1`` samples (memory bounded by that).
+        Keep every stride-th sample: ``n_steps // stride + 1`` samples (memory bounded by that);
+        at most the number of steps.
     energy, points : bool
         Also record T + V and the named point positions at each kept sample.
     check_stability : bool
@@ -230,6 +236,13 @@ def simulate(system: CompiledSystem, x0, t_end: float, h: float, method: str = "
     residuals, multipliers : bool
         Constrained models: record the constraint residuals, and the multipliers with the
         generalized constraint forces, at each kept sample.
+    drift_tolerance : float, optional
+        Constrained models: warn (`ConstraintDriftWarning`) when max |phi| over the kept samples
+        exceeds it; default `DRIFT_TOLERANCE` of the kernel's precision, ``math.inf`` switches
+        the check off.
+    max_output_bytes : int, optional
+        Refuse (`run_arguments.OutputTooLargeError`) runs keeping more; default half the
+        physical memory.
 
     Returns
     -------
@@ -237,44 +250,69 @@ def simulate(system: CompiledSystem, x0, t_end: float, h: float, method: str = "
         ``status`` says whether the run completed; a failed run keeps the samples before the
         failure and also emits a RuntimeWarning naming the reason, time and step.
     """
+    method = compiled_method(system, method)
+    n_steps = step_count(t0, t_end, h)
+    t0, h = float(t0), float(h)
+    stride = stride_within(stride, n_steps)
+    x = initial_state(system, x0)
+    p = parameter_vector(system, params)
+    outputs = _outputs(system, energy=energy, points=points, project=project, residuals=residuals,
+                       multipliers=multipliers)
+    tolerance = resolve_drift_tolerance(system.layout, drift_tolerance)
+    track = bool(tolerance is not None or outputs["residuals"])
+    nbytes = output_bytes(system.layout, n_steps, stride, energy=outputs["energy"], points=outputs["points"],
+                          residuals=track, multipliers=outputs["multipliers"])
+    check_output_size(nbytes, n_steps, stride, "the run", max_output_bytes)
+    if flag(check_stability, "check_stability"):
+        warn_if_unstable(system, x, p, h, method, t0, n_steps)
+    trajectory = _run(system, x, p, t0, h, n_steps, stride, method, outputs, track)
+    if tolerance is not None:
+        warn_if_drifted(trajectory, tolerance, system.layout.n_constraints)
+    if not outputs["residuals"] and trajectory.residuals is not None:  # kept for the drift check only
+        trajectory = replace(trajectory, residuals=None)
+    return trajectory
+
+
+def compiled_method(system: CompiledSystem, method) -> str:
+    """``method`` lower-cased, checked to be a string compiled into ``system``."""
     layout = system.layout
-    method = str(method).lower()
+    method = method_name(method)
     if method not in layout.methods:
         raise ValueError(f"method {method!r} is not compiled into {layout.model!r}; compiled: "
                          f"{', '.join(layout.methods) or 'none'}")
-    stride = positive_int(stride, "stride")
-    x = initial_state(system, x0)
-    p = parameter_vector(system, params)
-    n_steps = step_count(t0, t_end, h)
-    if energy and f"{layout.prefix}_energy" not in layout.functions:
-        raise ValueError(f"model {layout.model!r} was compiled without the 'energy' output")
-    if points and not layout.points:
-        raise ValueError(f"model {layout.model!r} was compiled without named points")
-    if (project or residuals or multipliers) and not layout.n_constraints:
-        raise ValueError(f"project, residuals and multipliers need holonomic constraints; "
-                         f"model {layout.model!r} has none")
-    if check_stability:
-        warn_if_unstable(system, x, p, h, method, t0, n_steps)
-    return _run(system, x, p, t0, h, n_steps, stride, method, energy, points, project, residuals, multipliers)
+    return method
 
 
-def _run(system, x, p, t0, h, n_steps, stride, method, energy, points, project=False, residuals=False,
-         multipliers=False) -> Trajectory:
+def _outputs(system: CompiledSystem, **requested) -> dict:
+    """The optional outputs as checked bools; ValueError when the model lacks one."""
+    layout = system.layout
+    outputs = {name: flag(value, name) for name, value in requested.items()}
+    if outputs["energy"] and f"{layout.prefix}_energy" not in layout.functions:
+        raise ValueError(f"energy=True: model {layout.model!r} was compiled without the 'energy' output")
+    if outputs["points"] and not layout.points:
+        raise ValueError(f"points=True: model {layout.model!r} was compiled without named points")
+    asked = [name for name in ("project", "residuals", "multipliers") if outputs[name]]
+    if asked and not layout.n_constraints:
+        raise ValueError(f"{', '.join(asked)} need holonomic constraints; model {layout.model!r} has none")
+    return outputs
+
+
+def _run(system, x, p, t0, h, n_steps, stride, method, outputs, track_residuals) -> Trajectory:
     layout, dtype = system.layout, _dtype(system)
     n_out = n_steps // stride + 1
     t_out = np.empty(n_out, dtype=dtype)
     x_out = np.empty((n_out, 2 * layout.n), dtype=dtype)
-    e_out = np.empty(n_out, dtype=dtype) if energy else None
-    p_out = np.empty((n_out, len(layout.points), 3), dtype=dtype) if points else None
+    e_out = np.empty(n_out, dtype=dtype) if outputs["energy"] else None
+    p_out = np.empty((n_out, len(layout.points), 3), dtype=dtype) if outputs["points"] else None
     m = layout.n_constraints
-    r_out = np.full((n_out, 2 * m), np.nan, dtype=dtype) if m and residuals else None
-    m_out = np.full((n_out, m + layout.n), np.nan, dtype=dtype) if m and multipliers else None
+    r_out = np.full((n_out, 2 * m), np.nan, dtype=dtype) if m and track_residuals else None
+    m_out = np.full((n_out, m + layout.n), np.nan, dtype=dtype) if m and outputs["multipliers"] else None
     work = np.empty(_work_size(system), dtype=dtype)
     steps_done = system.ffi.new("long *")
     ptr = lambda a: system.ffi.NULL if a is None else _pointer(system, a)  # noqa: E731
     simulate_c = getattr(system.lib, f"{layout.prefix}_simulate")
     code = simulate_c(layout.methods.index(method), t0, _pointer(system, x), _pointer(system, p), h,
-                      n_steps, stride, int(project), ptr(t_out), ptr(x_out), ptr(e_out), ptr(p_out),
+                      n_steps, stride, int(outputs["project"]), ptr(t_out), ptr(x_out), ptr(e_out), ptr(p_out),
                       ptr(r_out), ptr(m_out), ptr(work), steps_done)
     status = Status(code)
     kept = n_out if status == Status.OK else steps_done[0] // stride + 1
@@ -331,7 +369,15 @@ def warn_if_unstable(system: CompiledSystem, x, p, h: float, method: str, t: flo
         J = jacobian(system, x, p, t)
     except ValueError:  # e.g. a singular mass matrix at x: the run itself reports it
         return False
-    eigenvalues = np.linalg.eigvals(J.astype(np.float64))
+    if not np.all(np.isfinite(J)):  # e.g. a parameter of 1e308: no eigenvalues; the run reports its status
+        warnings.warn(f"stability pre-check skipped: the Jacobian at the initial state is not finite "
+                      f"(parameters or state near overflow); {method} runs unchecked", StabilityWarning,
+                      stacklevel=3)
+        return False
+    try:
+        eigenvalues = np.linalg.eigvals(J.astype(np.float64))
+    except np.linalg.LinAlgError:  # eigenvalue iteration did not converge: never fatal for a pre-check
+        return False
     settled = eigenvalues[eigenvalues.real <= 1e-9 * np.abs(eigenvalues)]
     if settled.size == 0:
         return False
@@ -340,8 +386,9 @@ def warn_if_unstable(system: CompiledSystem, x, p, h: float, method: str, t: flo
         unstable = h * w >= scheme.imag_stability_limit()
         limit = f"h*w < {scheme.imag_stability_limit():g}"
     else:
-        growth = float(np.max(np.abs(_stability_function(method)(h * settled))))
-        unstable = growth > 1 + 1e-12 and n_steps * math.log(growth) > math.log(10.0)
+        with np.errstate(over="ignore", invalid="ignore"):  # a huge h*w overflows R: unstable
+            growth = float(np.max(np.abs(_stability_function(method)(h * settled))))
+        unstable = not growth <= 1 + 1e-12 and not n_steps * math.log(growth) <= math.log(10.0)
         limit = (f"h*w < {scheme.imag_stability_limit():.4g} on the imaginary axis, "
                  f"{scheme.real_stability_limit():.4g} on the negative real axis")
     if unstable:

@@ -18,21 +18,40 @@ say) are not refused up front: they run and report SINGULAR_MASS_MATRIX in ``sta
 """
 from __future__ import annotations
 
-import itertools
 import math
 import os
+import warnings
 from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
 from dataclasses import dataclass
-from typing import Mapping, Sequence
+from typing import Mapping
 
 import numpy as np
 
 from .build import CompiledSystem
-from .simulate import (Status, _dtype, _pointer, _work_size, initial_state, parameter_vector, positive_int,
-                       step_count)
+from .run_arguments import check_memory, check_output_size, flag, output_bytes, positive_int, step_count, stride_within
+from .simulate import Status, _dtype, _pointer, _work_size, compiled_method
+from .sweep_members import (cartesian_members, cartesian_product, column_values, grid_axes,  # noqa: F401
+                            member_arrays, table_members)
 
 #: status of members a sweep did not reach (interrupted)
 NOT_RUN = -1
+#: status of members whose chunk raised (a Dask worker died, say); `SweepResult.errors` says why
+CHUNK_FAILED = -2
+#: names of the sweep-only status codes, next to `Status`' own
+SWEEP_STATUS_NAMES = {CHUNK_FAILED: "chunk_failed", NOT_RUN: "not_run"}
+
+
+class SweepWarning(RuntimeWarning):
+    """A chunk of the sweep failed; its members have status CHUNK_FAILED, the others are kept."""
+
+
+@dataclass(frozen=True)
+class ChunkError:
+    """A chunk that raised: members ``start`` to ``stop - 1`` and the exception's text."""
+
+    start: int
+    stop: int
+    error: str
 
 
 @dataclass(frozen=True)
@@ -54,7 +73,8 @@ class SweepResult:
     energy_error : ndarray (n_members,) or None
         max |E - E0| over every step, when the kernel has the energy output.
     status : ndarray (n_members,) of int
-        `Status` codes; NOT_RUN (-1) for members an interruption skipped.
+        `Status` codes; NOT_RUN (-1) for members an interruption skipped, CHUNK_FAILED (-2) for
+        members of a chunk that raised (listed in ``errors``).
     steps_done : ndarray (n_members,)
     blowup_time : ndarray (n_members,)
         Time at which the failing step started; NaN for members that completed.
@@ -62,9 +82,11 @@ class SweepResult:
         Every stride-th state, only when requested (NaN after a failure).
     state_names, coordinate_names : tuple of str
     completed : bool
-        False when the sweep was interrupted (Ctrl-C); finished members are kept.
+        False when the sweep was interrupted (Ctrl-C) or a chunk failed; finished members are kept.
     kernel : str
         ``"lanes"`` (the lane-group kernel) or ``"scalar"`` (members one after another).
+    errors : tuple of ChunkError
+        The chunks that raised, with the exception (also emitted as a `SweepWarning`).
     """
 
     columns: tuple
@@ -82,6 +104,7 @@ class SweepResult:
     coordinate_names: tuple
     completed: bool
     kernel: str = "scalar"
+    errors: tuple = ()
 
     @property
     def n_members(self) -> int:
@@ -95,69 +118,12 @@ class SweepResult:
         return data.reshape(tuple(len(axis) for axis in self.grid) + data.shape[1:])
 
 
-def cartesian_members(grid: Mapping[str, Sequence[float]]) -> tuple[tuple, np.ndarray, tuple]:
-    """(columns, values (n_members, n_columns), axes) of the Cartesian product of ``grid``."""
-    if not grid:
-        raise ValueError("the grid is empty: give at least one name with values")
-    columns = tuple(str(name) for name in grid)
-    axes = []
-    for name, axis in zip(columns, grid.values()):
-        axis = np.asarray(axis, dtype=float).ravel()
-        if axis.size == 0:
-            raise ValueError(f"grid axis {name!r} has no values")
-        axes.append(axis)
-    values = np.array(list(itertools.product(*axes)), dtype=float).reshape(-1, len(columns))
-    return columns, values, tuple(axes)
-
-
-def table_members(members: Mapping[str, Sequence[float]]) -> tuple[tuple, np.ndarray]:
-    """(columns, values) of an explicit member table: equal-length columns by name."""
-    if not members:
-        raise ValueError("the member table is empty")
-    columns = tuple(str(name) for name in members)
-    arrays = [np.asarray(v, dtype=float).ravel() for v in members.values()]
-    lengths = {a.size for a in arrays}
-    if len(lengths) != 1 or 0 in lengths:
-        raise ValueError(f"member table columns must be non-empty and equally long, got lengths "
-                         f"{dict(zip(columns, (a.size for a in arrays)))}")
-    return columns, np.column_stack(arrays)
-
-
-def member_arrays(system: CompiledSystem, columns, values, x0, params):
-    """Per-member x0 (n_members, 2n) and p (n_members, n_p) for the columns varied."""
-    layout = system.layout
-    state_names = layout.coordinates + layout.speeds
-    fixed = {name for name, _ in layout.fixed}
-    for name in columns:
-        if name in fixed:
-            raise ValueError(f"{name!r} is fixed at build time and cannot be swept; free parameters: "
-                             f"{', '.join(layout.parameters) or 'none'}")
-        if name not in layout.parameters and name not in state_names:
-            raise ValueError(f"cannot sweep {name!r}: not a free parameter ({', '.join(layout.parameters) or 'none'})"
-                             f" nor a state variable ({', '.join(state_names)})")
-    bad = [name for j, name in enumerate(columns) if not np.all(np.isfinite(values[:, j]))]
-    if bad:
-        raise ValueError(f"swept values of {', '.join(bad)} are not all finite")
-    dtype = _dtype(system)
-    if isinstance(x0, Mapping):  # swept state variables need no base value
-        x0 = {**{name: 0.0 for name in columns if name in state_names}, **x0}
-    base_x = initial_state(system, x0)
-    base_p = parameter_vector(system, params)
-    xs = np.repeat(base_x[None, :], len(values), axis=0)
-    ps = np.repeat(base_p[None, :], len(values), axis=0) if base_p.size else np.zeros((len(values), 1), dtype)
-    for j, name in enumerate(columns):
-        if name in layout.parameters:
-            ps[:, layout.parameters.index(name)] = values[:, j]
-        else:
-            xs[:, state_names.index(name)] = values[:, j]
-    return np.ascontiguousarray(xs, dtype=dtype), np.ascontiguousarray(ps, dtype=dtype)
-
-
 def sweep(system: CompiledSystem, grid: Mapping | None = None, *, members: Mapping | None = None, x0,
           t_end: float, h: float, method: str = "rk4", params: Mapping | None = None, t0: float = 0.0,
           trajectories: bool = False, stride: int = 1, threads: int | None = None,
           chunk_size: int | None = None, progress: bool | None = None, client=None,
-          track_energy: bool = True, project: bool = False, kernel: str = "auto") -> SweepResult:
+          track_energy: bool = True, project: bool = False, kernel: str = "auto",
+          max_output_bytes: int | None = None) -> SweepResult:
     """Run one compiled model for every member of a grid or table.
 
     Parameters
@@ -189,27 +155,38 @@ def sweep(system: CompiledSystem, grid: Mapping | None = None, *, members: Mappi
     kernel : {"auto", "lanes", "scalar"}
         C kernel: ``"auto"`` takes the lane-group kernel where it applies (explicit method, no
         projection, built with lanes), else the scalar one; ``"lanes"`` insists on it.
+    max_output_bytes : int, optional
+        Refuse (`run_arguments.OutputTooLargeError`) sweeps whose arrays would take more;
+        default half the physical memory.
+
+    Every argument is checked before any member runs; errors name the argument. A chunk that
+    raises (a Dask worker lost, say) does not lose the others: its members get status
+    CHUNK_FAILED, the sweep returns with ``completed=False`` and ``errors``, and warns.
     """
     if (grid is None) == (members is None):
         raise ValueError("give exactly one of grid= (Cartesian) or members= (explicit table)")
-    if grid is not None:
-        columns, values, axes = cartesian_members(grid)
-    else:
-        (columns, values), axes = table_members(members), None
     layout = system.layout
-    method = str(method).lower()
-    if method not in layout.methods:
-        raise ValueError(f"method {method!r} is not compiled into {layout.model!r}; compiled: {', '.join(layout.methods)}")
-    stride = positive_int(stride, "stride")
+    method = compiled_method(system, method)
     n_steps = step_count(t0, t_end, h)
-    track_energy = track_energy and f"{layout.prefix}_energy" in layout.functions
-    xs, ps = member_arrays(system, columns, values, x0, params)
+    t0, h = float(t0), float(h)
+    stride = stride_within(stride, n_steps)
+    trajectories, track_energy, project = (flag(v, name) for name, v in (
+        ("trajectories", trajectories), ("track_energy", track_energy), ("project", project)))
+    threads, chunk_size = _optional_positive(threads, "threads"), _optional_positive(chunk_size, "chunk_size")
+    _check_runner(progress, client, kernel)
     if project and not layout.n_constraints:
         raise ValueError(f"project needs holonomic constraints; model {layout.model!r} has none")
-    if kernel != "scalar" and system.lane_build is not None and _lanes(system, method, project, "auto") == 0:
-        lane_system = system.lane_variant()  # compiled on the first sweep that can use it
-        if _lanes(lane_system, method, project, "auto"):
-            system = lane_system
+    track_energy = track_energy and f"{layout.prefix}_energy" in layout.functions
+    if grid is not None:
+        columns, axes = grid_axes(grid)
+        _check_sweep_size(layout, math.prod(len(axis) for axis in axes), len(columns), n_steps, stride,
+                          trajectories, max_output_bytes)
+        values = cartesian_product(axes)
+    else:
+        (columns, values), axes = table_members(members), None
+        _check_sweep_size(layout, len(values), len(columns), n_steps, stride, trajectories, max_output_bytes)
+    xs, ps = member_arrays(system, columns, values, x0, params)
+    system = _kernel_system(system, method, project, kernel)
     lanes = _lanes(system, method, project, kernel)
     job = _Job(system, layout.methods.index(method), t0, h, n_steps, stride, track_energy, trajectories, project,
                lanes)
@@ -220,8 +197,47 @@ def sweep(system: CompiledSystem, grid: Mapping | None = None, *, members: Mappi
         chunk_size = -(-chunk_size // lanes) * lanes if lanes else chunk_size
     chunks = [(start, min(start + chunk_size, len(values))) for start in range(0, len(values), chunk_size)]
     run = _run_dask if client is not None else _run_threads
-    completed = run(job, xs, ps, out, chunks, threads if client is None else client, progress)
-    return _result(job, columns, values, axes, out, completed)
+    completed, errors = run(job, xs, ps, out, chunks, threads if client is None else client, progress)
+    _mark_failed(out, errors)
+    return _result(job, columns, values, axes, out, completed and not errors, errors)
+
+
+def _optional_positive(value, what: str) -> int | None:
+    return None if value is None else positive_int(value, what)
+
+
+def _check_runner(progress, client, kernel) -> None:
+    """progress, client and kernel: the arguments that choose how the sweep runs."""
+    if progress is not None:
+        flag(progress, "progress")
+    if client is not None and not callable(getattr(client, "submit", None)):
+        raise TypeError(f"client must be a dask.distributed Client (with .submit), got {type(client).__name__}")
+    if not isinstance(kernel, str) or kernel not in KERNELS:
+        raise ValueError(f"kernel must be one of {KERNELS}, got {kernel!r}")
+
+
+def _check_sweep_size(layout, n_members: int, n_columns: int, n_steps: int, stride: int, trajectories: bool,
+                      limit: int | None) -> None:
+    """Refuse sweeps whose per-member arrays (inputs, results and kept trajectories) do not fit."""
+    itemsize = 4 if layout.precision == "float" else 8
+    # values (n_columns doubles), x0 and x_final (2n each), q_max (n), p, energy error, status, steps
+    per_member = 8 * n_columns + itemsize * (5 * layout.n + len(layout.parameters) + 2) + 4 + 8
+    kept = output_bytes(layout, n_steps, stride, n_members=n_members, trajectory=trajectories)
+    kept -= itemsize * n_members * (n_steps // stride + 1) if trajectories else 0  # no t per member
+    if trajectories:
+        check_output_size(kept + n_members * per_member, n_steps, stride,
+                          f"the sweep of {n_members} members", limit)
+    check_memory(n_members * per_member, f"the sweep of {n_members} members would need",
+                 "sweep fewer members (a coarser grid)", limit)
+
+
+def _kernel_system(system: CompiledSystem, method: str, project: bool, kernel: str) -> CompiledSystem:
+    """``system``, or its lane variant (compiled on the first sweep that can use it)."""
+    if kernel != "scalar" and system.lane_build is not None and _lanes(system, method, project, "auto") == 0:
+        lane_system = system.lane_variant()
+        if _lanes(lane_system, method, project, "auto"):
+            return lane_system
+    return system
 
 
 KERNELS = ("auto", "lanes", "scalar")
@@ -316,7 +332,8 @@ def _progress_bar(total: int, progress: bool | None):
     return tqdm(total=total, unit="member", delay=0.0 if progress else 1.0, leave=False)
 
 
-def _run_threads(job, xs, ps, out, chunks, threads, progress) -> bool:
+def _run_threads(job, xs, ps, out, chunks, threads, progress) -> tuple[bool, list]:
+    """Chunks on a local thread pool; returns (not interrupted, [ChunkError of chunks that raised])."""
     bar = _progress_bar(len(xs), progress)
 
     def task(bounds):
@@ -326,51 +343,83 @@ def _run_threads(job, xs, ps, out, chunks, threads, progress) -> bool:
         return stop - start
 
     pool = ThreadPoolExecutor(max_workers=threads)
-    pending = {pool.submit(task, bounds) for bounds in chunks}
+    pending = {pool.submit(task, bounds): bounds for bounds in chunks}
+    errors = []
     try:
         while pending:
-            done, pending = wait(pending, timeout=0.2, return_when=FIRST_COMPLETED)
+            done, _ = wait(pending, timeout=0.2, return_when=FIRST_COMPLETED)
             for future in done:
-                count = future.result()
-                if bar is not None:
-                    bar.update(count)
-        return True
+                bounds = pending.pop(future)
+                if _collect(future, bounds, errors):
+                    _advance(bar, bounds)
+        return True, errors
     except KeyboardInterrupt:
         for future in pending:
             future.cancel()
-        return False
+        return False, errors
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
         if bar is not None:
             bar.close()
 
 
-def _run_dask(job, xs, ps, out, chunks, client, progress) -> bool:
+def _run_dask(job, xs, ps, out, chunks, client, progress) -> tuple[bool, list]:
+    """Chunks as tasks on a Dask cluster; returns (not interrupted, [ChunkError ...])."""
     from dask.distributed import as_completed
 
     bar = _progress_bar(len(xs), progress)
     futures = {client.submit(run_chunk, job, xs[a:b], ps[a:b], pure=False): (a, b) for a, b in chunks}
+    errors = []
     try:
         for future in as_completed(futures):
             a, b = futures[future]
-            part = future.result()
+            part = _collect(future, (a, b), errors)
+            if part is None:
+                continue
             for key, array in out.items():
                 if array is not None:
                     array[a:b] = part[key]
-            if bar is not None:
-                bar.update(b - a)
-        return True
+            _advance(bar, (a, b))
+        return True, errors
     except KeyboardInterrupt:
         client.cancel(list(futures))
-        return False
+        return False, errors
     finally:
         if bar is not None:
             bar.close()
 
 
-def _result(job: _Job, columns, values, axes, out, completed: bool) -> SweepResult:
+def _collect(future, bounds, errors: list):
+    """The chunk's result, or None after recording its exception in ``errors`` (any exception:
+    a chunk that raises must not lose the chunks that finished)."""
+    try:
+        return future.result()
+    except Exception as error:  # noqa: BLE001 - KilledWorker, MemoryError, a bug in a chunk: all recorded
+        errors.append(ChunkError(bounds[0], bounds[1], f"{type(error).__name__}: {error}"))
+        return None
+
+
+def _advance(bar, bounds) -> None:
+    if bar is not None:
+        bar.update(bounds[1] - bounds[0])
+
+
+def _mark_failed(out: dict, errors: list) -> None:
+    """Members of failed chunks: status CHUNK_FAILED, results NaN (a half-written chunk is not
+    trusted), one warning per chunk naming the members and the exception."""
+    for error in errors:
+        rows = slice(error.start, error.stop)
+        for key, array in out.items():
+            if array is not None and key not in ("status", "steps_done"):
+                array[rows] = np.nan
+        out["status"][rows], out["steps_done"][rows] = CHUNK_FAILED, 0
+        warnings.warn(f"sweep chunk of members {error.start} to {error.stop - 1} failed ({error.error}); "
+                      f"their status is CHUNK_FAILED, the other members are kept", SweepWarning, stacklevel=3)
+
+
+def _result(job: _Job, columns, values, axes, out, completed: bool, errors=()) -> SweepResult:
     layout = job.system.layout
-    failed = (out["status"] != Status.OK) & (out["status"] != NOT_RUN)
+    failed = out["status"] > Status.OK  # the C kernel's failures; not NOT_RUN, CHUNK_FAILED
     blowup = np.where(failed, job.t0 + out["steps_done"] * job.h, np.nan)
     t = job.t0 + job.h * job.stride * np.arange(job.n_out) if job.trajectories else None
     return SweepResult(
@@ -378,4 +427,4 @@ def _result(job: _Job, columns, values, axes, out, completed: bool) -> SweepResu
         energy_error=out["energy_error"] if job.track_energy else None, status=out["status"],
         steps_done=out["steps_done"], blowup_time=blowup, t=t, trajectories=out["traj"],
         state_names=layout.coordinates + layout.speeds, coordinate_names=layout.coordinates,
-        completed=completed, kernel="lanes" if job.lanes else "scalar")
+        completed=completed, kernel="lanes" if job.lanes else "scalar", errors=tuple(errors))

@@ -1,0 +1,162 @@
+"""Stage helper for run: check the arguments of `simulate` and `sweep` before any C call.
+
+Every check raises an error naming the argument (``h``, ``t_end``, ``stride``, a parameter or a
+state variable) instead of letting ``float()``, ``range()``, numpy or cffi fail anonymously
+(an OverflowError from cffi for a step count beyond C ``long``, a TypeError from a comparison
+with ``None``). Wrong types raise TypeError, wrong values ValueError.
+
+`output_bytes` and `check_output_size` estimate the memory a run keeps before it is allocated
+and refuse more than `output_limit` (half the physical memory), with the size and a ``stride``
+that fits in the message; the CLI reuses them.
+"""
+from __future__ import annotations
+
+import math
+import numbers
+import operator
+import os
+
+import numpy as np
+
+#: the C drivers count steps in ``long``; 64 bits on every platform lagcodegen builds for but
+#: Windows (where cffi's own range check still raises, after this one)
+MAX_STEPS = 2 ** 63 - 1
+#: the fraction of physical memory a run's kept samples may take
+OUTPUT_MEMORY_FRACTION = 0.5
+_FALLBACK_LIMIT = 16 * 2 ** 30
+
+
+def real_number(value, what: str) -> float:
+    """``value`` as a finite float; TypeError for non-numbers (str, None, bool, complex),
+    ValueError for NaN, infinities and ints too large for a double, each naming ``what``."""
+    if isinstance(value, np.ndarray) and value.ndim == 0:
+        value = value[()]
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
+        raise TypeError(f"{what} must be a real number, got {value!r} ({type(value).__name__})")
+    try:
+        number = float(value)
+    except (OverflowError, TypeError, ValueError) as error:
+        raise ValueError(f"{what} = {value!r} is not representable as a double ({error})") from None
+    if not math.isfinite(number):
+        raise ValueError(f"{what} must be finite, got {number}")
+    return number
+
+
+def real_values(values, names, what: str) -> list:
+    """``[real_number(v, f"{what} {name!r}") ...]``: one float per named entry."""
+    return [real_number(value, f"{what} {name!r}") for name, value in zip(names, values)]
+
+
+def flag(value, what: str) -> bool:
+    """``value`` as a bool; only True/False (numpy's too): ``energy="no"`` must not mean yes."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise TypeError(f"{what} must be True or False, got {value!r} ({type(value).__name__})")
+    return bool(value)
+
+
+def positive_int(value, what: str) -> int:
+    """``value`` as a positive int (numpy integers welcome, bools and floats not)."""
+    if isinstance(value, (bool, np.bool_)):
+        raise ValueError(f"{what} must be a positive integer, got {value!r}")
+    try:
+        number = operator.index(value)
+    except TypeError:
+        raise ValueError(f"{what} must be a positive integer, got {value!r} ({type(value).__name__})") from None
+    if number < 1:
+        raise ValueError(f"{what} must be a positive integer, got {value!r}")
+    return number
+
+
+def method_name(method) -> str:
+    """The method name, lower case; TypeError naming ``method`` for anything but a string."""
+    if not isinstance(method, str):
+        raise TypeError(f"method must be a method name (str), got {method!r} ({type(method).__name__})")
+    return method.lower()
+
+
+def step_count(t0: float, t_end: float, h: float) -> int:
+    """Number of steps of size h from t0 to t_end; t_end - t0 must be a multiple of h."""
+    t0, t_end, h = real_number(t0, "t0"), real_number(t_end, "t_end"), real_number(h, "h")
+    if not h > 0:
+        raise ValueError(f"step h must be positive and finite, got {h}")
+    span = t_end - t0
+    if not math.isfinite(span):
+        raise ValueError(f"t_end - t0 = {t_end} - {t0} overflows a double")
+    if not span > 0:
+        raise ValueError(f"t_end ({t_end}) must be greater than t0 ({t0})")
+    ratio = span / h
+    if not ratio < MAX_STEPS:  # also inf, for a subnormal h
+        raise ValueError(f"t_end - t0 = {span:g} with step h = {h:g} is {ratio:.3g} steps, more than the "
+                         f"C step counter holds (2^63 - 1): raise h or shorten t_end")
+    n = int(round(ratio))
+    if n < 1 or abs(n * h - span) > 1e-9 * max(1.0, abs(span)):
+        raise ValueError(f"t_end - t0 = {span} is not a whole number of steps h = {h}")
+    return n
+
+
+def stride_within(stride, n_steps: int) -> int:
+    """``stride`` checked as a positive int no larger than the step count (a larger one keeps
+    only the initial state and silently drops the final one)."""
+    stride = positive_int(stride, "stride")
+    if stride > n_steps:
+        raise ValueError(f"stride = {stride} exceeds the number of steps ({n_steps}): only the initial "
+                         f"state would be kept; use stride <= {n_steps}")
+    return stride
+
+
+def output_limit() -> int:
+    """Bytes a run may keep: `OUTPUT_MEMORY_FRACTION` of the physical memory (16 GiB when the
+    platform does not say)."""
+    try:
+        total = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (AttributeError, ValueError, OSError):
+        return _FALLBACK_LIMIT
+    return int(total * OUTPUT_MEMORY_FRACTION) if total > 0 else _FALLBACK_LIMIT
+
+
+def output_bytes(layout, n_steps: int, stride: int = 1, *, n_members: int = 1, energy: bool = False,
+                 points: bool = False, residuals: bool = False, multipliers: bool = False,
+                 trajectory: bool = True) -> int:
+    """Bytes of the samples a run keeps: n_members * (n_steps // stride + 1) samples of
+    t, x (2n), and the optional energy (1), points (3 per point), residuals (2m) and multipliers
+    with constraint forces (m + n). ``layout`` is ``system.layout``; ``trajectory=False`` (a sweep
+    keeping final states only) counts none."""
+    if not trajectory:
+        return 0
+    n, m = layout.n, layout.n_constraints
+    per_sample = 1 + 2 * n + energy + 3 * len(layout.points) * points + 2 * m * residuals + (m + n) * multipliers
+    itemsize = 4 if layout.precision == "float" else 8
+    return n_members * (n_steps // stride + 1) * per_sample * itemsize
+
+
+def check_output_size(nbytes: int, n_steps: int, stride: int, what: str, limit: int | None = None) -> None:
+    """Refuse (`OutputTooLargeError`) when ``nbytes`` of kept samples exceed ``limit`` (default
+    `output_limit`), naming the size and the smallest stride that fits."""
+    if nbytes <= (output_limit() if limit is None else limit):
+        return
+    samples = n_steps // stride + 1
+    fitting = max(1, int((output_limit() if limit is None else limit) // (nbytes / samples)) - 1)
+    hint = (f"keep fewer samples with stride >= {math.ceil(n_steps / fitting)}" if fitting < n_steps
+            else "run fewer members")
+    check_memory(nbytes, f"{what} would keep {samples} samples", hint, limit)
+
+
+def check_memory(nbytes: int, what: str, hint: str, limit: int | None = None) -> None:
+    """Refuse (`OutputTooLargeError`) ``nbytes`` above ``limit`` (default `output_limit`)."""
+    source = "half the physical memory" if limit is None else "max_output_bytes"
+    limit = output_limit() if limit is None else limit
+    if nbytes > limit:
+        raise OutputTooLargeError(f"{what}: {format_bytes(nbytes)}, more than the limit of "
+                                  f"{format_bytes(limit)} ({source}); {hint}")
+
+
+def format_bytes(n: float) -> str:
+    """``n`` bytes as e.g. ``"7.28 TiB"``."""
+    units, k = ("B", "KiB", "MiB", "GiB", "TiB", "PiB", "EiB"), 0
+    while n >= 1024 and k < len(units) - 1:
+        n, k = n / 1024, k + 1
+    return f"{n:.3g} {units[k]}"
+
+
+class OutputTooLargeError(ValueError):
+    """The samples a run would keep do not fit in memory; the message gives the size and a stride."""
