@@ -45,7 +45,9 @@ def inner(pytester, repo_root):
                 patch.setenv("CI", "true")
             else:
                 patch.delenv("CI", raising=False)
-            return pytester.runpytest("-p", "no:cacheprovider", "-rs", *names)
+            # a subprocess: an in-process inner session crashed the outer one (SIGSEGV) after
+            # many cffi modules were loaded
+            return pytester.runpytest_subprocess("-p", "no:cacheprovider", "-rs", *names)
 
     return run
 
