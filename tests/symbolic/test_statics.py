@@ -324,3 +324,22 @@ def test_guesses_need_values(double):
     found = find_equilibria(double, values={}, guesses=[[0.1, -0.2], {"q1": 3.0, "q2": 0.1}])
     flat = [float(s[q]) for s in found for q in double.q]
     assert flat == pytest.approx([0.0, 0.0, math.pi, 0.0])
+
+
+@pytest.mark.parametrize("q0, error, culprit", [
+    ([math.nan, 0.0], ValueError, r"q0 entry for q1\b must be finite"),
+    ({"q1": 0.0, "q2": math.inf}, ValueError, r"q0 entry for q2\b must be finite"),
+    ([0.0, sp.oo], ValueError, r"q0 entry for q2\b must be finite"),
+    (["a", 0.0], TypeError, r"q0 entry for q1\b must be a number"),  # sympify("a") is a new symbol
+    ([0.0, None], TypeError, r"q0 entry for q2\b"),
+])
+def test_non_finite_or_non_numeric_q0_is_refused(double, q0, error, culprit):
+    """Before, NaN gave NaN matrices and "a" a linear model in a stray symbol a."""
+    with pytest.raises(error, match=culprit):
+        linearize(double, q0, values={})
+
+
+@pytest.mark.parametrize("value", [math.nan, math.inf, True])
+def test_non_finite_parameter_values_are_refused(double, value):
+    with pytest.raises(ValueError, match=r"parameter m2 needs a finite number"):
+        linearize(double, [0.0, 0.0], values={"m2": value})
