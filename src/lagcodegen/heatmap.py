@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING, Sequence
 import numpy as np
 
 from .simulate import Status
-from .sweep import NOT_RUN, SweepResult
+from .sweep import CHUNK_FAILED, NOT_RUN, SWEEP_STATUS_NAMES, SweepResult
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -312,12 +312,28 @@ def _draw_values(fig, ax, edges, z, hidden, log, cmap, label) -> None:
     _plain_log_ticks(bar.ax.yaxis, log)
 
 
+#: one distinct colour per status code (the sweep's CHUNK_FAILED and NOT_RUN first); a new
+#: `Status` without an entry here fails `status_legend`, not silently shares a colour
+STATUS_COLOURS = {CHUNK_FAILED: "#000000", NOT_RUN: _NOT_RUN_GREY, Status.OK: "#2a9d8f",
+                  Status.SINGULAR_MASS_MATRIX: "#e76f51", Status.NONFINITE_STATE: "#9b2226",
+                  Status.NEWTON_FAILED: "#f4a261", Status.UNKNOWN_METHOD: "#6d597a",
+                  Status.SINGULAR_CONSTRAINTS: "#457b9d"}
+
+
+def status_legend() -> tuple[list, list, list]:
+    """(codes, names, colours) of every status a sweep reports, codes ascending and consecutive."""
+    codes = sorted([*SWEEP_STATUS_NAMES, *(int(s) for s in Status)])
+    missing = [code for code in codes if code not in STATUS_COLOURS]
+    if missing or codes != list(range(codes[0], codes[-1] + 1)):
+        raise ValueError(f"status codes without a colour or not consecutive: {missing or codes}")
+    names = [SWEEP_STATUS_NAMES.get(code) or Status(code).name.lower() for code in codes]
+    return codes, names, [STATUS_COLOURS[code] for code in codes]
+
+
 def _draw_status(fig, ax, edges, status, label) -> None:
     from matplotlib.colors import BoundaryNorm, ListedColormap
 
-    codes = [NOT_RUN] + [int(s) for s in Status]
-    names = ["not run"] + [s.name.lower() for s in Status]
-    colors = [_NOT_RUN_GREY, "#2a9d8f", "#e76f51", "#9b2226", "#f4a261", "#6d597a"][:len(codes)]
+    codes, names, colors = status_legend()
     norm = BoundaryNorm(np.arange(codes[0] - 0.5, codes[-1] + 1), len(codes))
     mesh = ax.pcolormesh(edges[0], edges[1], status, cmap=ListedColormap(colors), norm=norm, shading="flat")
     bar = fig.colorbar(mesh, ax=ax, label=label, ticks=codes)

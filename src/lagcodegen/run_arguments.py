@@ -135,9 +135,9 @@ def check_output_size(nbytes: int, n_steps: int, stride: int, what: str, limit: 
     if nbytes <= (output_limit() if limit is None else limit):
         return
     samples = n_steps // stride + 1
-    fitting = max(1, int((output_limit() if limit is None else limit) // (nbytes / samples)) - 1)
-    hint = (f"keep fewer samples with stride >= {math.ceil(n_steps / fitting)}" if fitting < n_steps
-            else "run fewer members")
+    fitting = int((output_limit() if limit is None else limit) // (nbytes // samples))  # samples that fit
+    smallest = n_steps // fitting + 1 if fitting else n_steps + 1  # n_steps // stride + 1 <= fitting
+    hint = f"keep fewer samples with stride >= {smallest}" if smallest <= n_steps else "run fewer members"
     check_memory(nbytes, f"{what} would keep {samples} samples", hint, limit)
 
 
@@ -155,7 +155,7 @@ def format_bytes(n: float) -> str:
     units, k = ("B", "KiB", "MiB", "GiB", "TiB", "PiB", "EiB"), 0
     while n >= 1024 and k < len(units) - 1:
         n, k = n / 1024, k + 1
-    return f"{n:.3g} {units[k]}"
+    return f"{n:.3g} {units[k]}" if k else f"{n:.0f} B"
 
 
 class OutputTooLargeError(ValueError):

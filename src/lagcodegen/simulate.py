@@ -284,17 +284,23 @@ def compiled_method(system: CompiledSystem, method) -> str:
 
 
 def _outputs(system: CompiledSystem, **requested) -> dict:
-    """The optional outputs as checked bools; ValueError when the model lacks one."""
+    """The optional outputs as checked bools; ValueError when the kernel lacks the C function one
+    needs (the C driver skips a missing output, which would leave its array unwritten)."""
     layout = system.layout
     outputs = {name: flag(value, name) for name, value in requested.items()}
-    if outputs["energy"] and f"{layout.prefix}_energy" not in layout.functions:
-        raise ValueError(f"energy=True: model {layout.model!r} was compiled without the 'energy' output")
-    if outputs["points"] and not layout.points:
-        raise ValueError(f"points=True: model {layout.model!r} was compiled without named points")
     asked = [name for name in ("project", "residuals", "multipliers") if outputs[name]]
     if asked and not layout.n_constraints:
         raise ValueError(f"{', '.join(asked)} need holonomic constraints; model {layout.model!r} has none")
+    for name, output in NEEDED_OUTPUT.items():
+        if outputs.get(name) and f"{layout.prefix}_{name}" not in layout.functions:
+            raise ValueError(f"{name}=True: model {layout.model!r} was compiled without the {output!r} output "
+                             f"(compile_model(..., outputs=(..., {output!r})))")
     return outputs
+
+
+#: option -> the compile output that brings its C function lcg_<model>_<option>
+NEEDED_OUTPUT = {"energy": "energy", "points": "points", "project": "constraints", "residuals": "constraints",
+                 "multipliers": "multipliers"}
 
 
 def _run(system, x, p, t0, h, n_steps, stride, method, outputs, track_residuals) -> Trajectory:

@@ -31,6 +31,8 @@ left out of them.
 from __future__ import annotations
 
 import itertools
+import math
+import numbers
 from dataclasses import dataclass
 from typing import Any, Mapping, Sequence
 
@@ -249,6 +251,8 @@ def resolve_values(eom: EquationsOfMotion, values: Mapping) -> dict:
             out[symbol] = float(value)
         except (TypeError, ValueError):
             raise ValueError(f"parameter {symbol} needs a number, got {value!r}") from None
+        if isinstance(value, (bool, np.bool_)) or not math.isfinite(out[symbol]):  # NaN gives NaN matrices
+            raise ValueError(f"parameter {symbol} needs a finite number, got {value!r}")
     return out
 
 
@@ -276,11 +280,25 @@ def _point(eom: EquationsOfMotion, q0: Any) -> tuple:
         missing = [str(qi) for qi in eom.q if qi not in given]
         if missing:
             raise ValueError(f"no value for coordinate(s) {', '.join(missing)} of model {eom.name!r}")
-        return tuple(given[qi] for qi in eom.q)
-    q0 = tuple(np.ravel(q0)) if isinstance(q0, np.ndarray) else tuple(q0)
+        q0 = tuple(given[qi] for qi in eom.q)
+    else:
+        q0 = tuple(np.ravel(q0)) if isinstance(q0, np.ndarray) else tuple(q0)
     if len(q0) != eom.n:
         raise ValueError(f"q0 has {len(q0)} entries; model {eom.name!r} has {eom.n} coordinate(s) ({names})")
+    for qi, value in zip(eom.q, q0):
+        _check_coordinate(qi, value)
     return q0
+
+
+def _check_coordinate(qi, value) -> None:
+    """A q0 entry is a number or a sympy expression: not a string (sympify would turn "a" into a
+    new symbol), not NaN or infinite (NaN matrices)."""
+    if isinstance(value, (str, bytes, bool, np.bool_)) or value is None:
+        raise TypeError(f"q0 entry for {qi} must be a number or sympy expression, got {value!r}")
+    if isinstance(value, numbers.Real) and not math.isfinite(float(value)):
+        raise ValueError(f"q0 entry for {qi} must be finite, got {value!r}")
+    if isinstance(value, sp.Basic) and value.is_number and value.has(sp.nan, sp.zoo, sp.oo, -sp.oo):
+        raise ValueError(f"q0 entry for {qi} must be finite, got {value!r}")
 
 
 # -- linearization ------------------------------------------------------------------------------

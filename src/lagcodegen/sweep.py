@@ -395,8 +395,17 @@ def _collect(future, bounds, errors: list):
     try:
         return future.result()
     except Exception as error:  # noqa: BLE001 - KilledWorker, MemoryError, a bug in a chunk: all recorded
-        errors.append(ChunkError(bounds[0], bounds[1], f"{type(error).__name__}: {error}"))
+        errors.append(ChunkError(bounds[0], bounds[1], _describe(error)))
         return None
+
+
+def _describe(error: BaseException) -> str:
+    """``"Type: message"``; an exception whose str() fails itself still gets its type named."""
+    try:
+        text = str(error)
+    except Exception:  # noqa: BLE001 - e.g. a KilledWorker built without its WorkerState
+        text = "(no message)"
+    return f"{type(error).__name__}: {text}"
 
 
 def _advance(bar, bounds) -> None:

@@ -70,11 +70,12 @@ def column_values(name: str, values, what: str) -> np.ndarray:
         raise ValueError(f"{what} {name!r} has values of uneven shape ({error})") from None
     if array.ndim > 1:
         raise ValueError(f"{what} {name!r} must be a flat sequence of numbers, got shape {array.shape}")
-    if array.dtype.kind not in "iuf":
-        bad = [v for v in array.ravel() if isinstance(v, (bool, np.bool_)) or not isinstance(v, numbers.Real)]
-        if bad or array.dtype.kind != "O":
-            culprit = bad[0] if bad else array.ravel()[0]
-            raise TypeError(f"{what} {name!r} holds a non-number: {culprit!r} ({type(culprit).__name__})")
+    if array.dtype.kind not in "iuf":  # strings, bools, complex, or objects to look at one by one
+        # the caller's own objects where possible: numpy turns (1.0, "x") into two strings
+        items = list(values) if isinstance(values, (list, tuple)) else array.astype(object).ravel()
+        bad = [v for v in items if isinstance(v, (bool, np.bool_)) or not isinstance(v, numbers.Real)]
+        if bad:
+            raise TypeError(f"{what} {name!r} holds a non-number: {bad[0]!r} ({type(bad[0]).__name__})")
     try:
         return array.astype(float).ravel()
     except OverflowError:

@@ -21,7 +21,8 @@ from numpy.testing import assert_array_equal
 
 from lagcodegen.build import BuildError, _restore
 from lagcodegen.simulate import simulate
-from lagcodegen.sweep import sweep
+import lagcodegen.sweep as sweep_module
+from lagcodegen.sweep import CHUNK_FAILED, SweepWarning, sweep
 
 pytestmark = pytest.mark.compiler
 
@@ -98,3 +99,92 @@ def test_restore_rebuilds_when_the_module_path_is_missing(pendulum, tmp_path, mo
     # without sources there is nothing to rebuild from: a clear error, not an ImportError
     with pytest.raises(BuildError, match="no longer exists"):
         _restore(key, str(missing), module_name, layout, None)
+
+
+def test_a_failed_task_keeps_the_other_chunks(pendulum, distributed, monkeypatch):
+    """One task raises on the cluster (a bug in a chunk, reaching the client as its own
+    exception). Before, ``future.result()`` raised out of sweep() and the finished chunks were
+    lost. Now the failed chunks' members are CHUNK_FAILED and every other member equals the
+    local sweep (the independent reference).
+
+    An in-process cluster (processes=False: in-process transport, no network port): its worker
+    threads call the same module-level ``run_chunk`` -> ``_call`` real tasks call, with ``_call``
+    failing for chunks holding a member with q1 = 0 (members 2, 7, 12, 17; chunk_size 3)."""
+    local = sweep(pendulum, GRID, threads=2, **RUN)
+    real_call = sweep_module._call
+
+    def call(job, xs, ps, out):
+        if np.any(xs[:, 0] == 0.0):
+            raise ZeroDivisionError("chunk bug")
+        real_call(job, xs, ps, out)
+
+    monkeypatch.setattr(sweep_module, "_call", call)
+    chunks = sorted({m // 3 for m in np.flatnonzero(local.values[:, 1] == 0.0)})
+    assert chunks == [0, 2, 4, 5]
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=2, processes=False,
+                                  dashboard_address=None) as cluster, distributed.Client(cluster) as client:
+        with pytest.warns(SweepWarning) as caught:
+            remote = sweep(pendulum, GRID, client=client, chunk_size=3, **RUN)
+    assert {str(w.message).split(" failed")[0] for w in caught} == \
+        {f"sweep chunk of members {3 * c} to {3 * c + 2}" for c in chunks} and len(caught) == len(chunks)
+    assert all("(ZeroDivisionError: chunk bug)" in str(w.message) for w in caught)
+    failed = np.zeros(remote.n_members, bool)
+    for chunk in chunks:
+        failed[3 * chunk:3 * chunk + 3] = True
+    assert not remote.completed
+    assert sorted((e.start, e.stop, e.error) for e in remote.errors) == \
+        [(3 * c, 3 * c + 3, "ZeroDivisionError: chunk bug") for c in chunks]
+    assert_kept_members_equal(remote, local, failed)
+
+
+def assert_kept_members_equal(remote, local, failed):
+    """Members of failed chunks are CHUNK_FAILED with NaN results; the others equal ``local``."""
+    assert_array_equal(remote.status[failed], CHUNK_FAILED)
+    assert np.all(np.isnan(remote.x_final[failed])) and np.all(np.isnan(remote.trajectories[failed]))
+    for name in FIELDS:
+        if name not in ("values", "t"):
+            assert_array_equal(getattr(remote, name)[~failed], getattr(local, name)[~failed], err_msg=name)
+    assert_array_equal(remote.values, local.values)
+
+
+def test_a_killed_worker_keeps_the_other_chunks(pendulum, distributed):
+    """A worker process really dies (``os._exit`` in the chunk holding q1 = 0, installed in the
+    worker with ``client.run``; a nested function, so cloudpickle ships it by value). With
+    allowed-failures = 0 the scheduler gives up on every task that was on the dead worker: the
+    client sees ``KilledWorker`` for those chunks. Which chunks were on it depends on scheduling,
+    so the test checks the invariant: exactly the chunks listed in ``errors`` are CHUNK_FAILED,
+    the one that killed the worker is among them, and every other member equals the local sweep
+    (the restarted worker has the real ``_call`` again)."""
+    import dask
+
+    local = sweep(pendulum, GRID, threads=2, **RUN)
+
+    def install_killer():
+        import os as os_
+
+        import numpy as np_
+
+        import lagcodegen.sweep as module
+        real_call = module._call
+
+        def call(job, xs, ps, out):
+            if np_.any(xs[:, 0] == 0.0) and np_.any(xs[:, 0] < 0.0):  # chunk 0 only: members 0..2
+                os_._exit(1)
+            real_call(job, xs, ps, out)
+
+        module._call = call
+
+    with dask.config.set({"distributed.scheduler.allowed-failures": 0}), \
+            distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
+                                     dashboard_address=None) as cluster, distributed.Client(cluster) as client:
+        client.run(install_killer)
+        with pytest.warns(SweepWarning) as caught:
+            remote = sweep(pendulum, GRID, client=client, chunk_size=3, **RUN)
+    assert any("members 0 to 2 failed (KilledWorker" in str(w.message) for w in caught)
+    assert len(caught) == len(remote.errors)
+    failed = np.zeros(remote.n_members, bool)
+    for error in remote.errors:
+        assert error.error.startswith("KilledWorker")
+        failed[error.start:error.stop] = True
+    assert not remote.completed and failed[:3].all() and not failed.all()
+    assert_kept_members_equal(remote, local, failed)

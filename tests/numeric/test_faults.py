@@ -76,6 +76,24 @@ def test_nonfinite_state_is_reported_with_the_failing_step(chain, stride):
     assert info.value.trajectory is traj
 
 
+def test_status_prints_its_name_and_keeps_its_value(chain):
+    """print(traj.status) gave "0": IntEnum's str is the number. The C codes (LCG_*) stay."""
+    assert [int(s) for s in Status] == [0, 1, 2, 3, 4, 5]
+    assert str(Status.OK) == f"{Status.OK}" == "OK" and f"{Status.NONFINITE_STATE:>16}" == " NONFINITE_STATE"
+    assert f"{Status.NONFINITE_STATE:d}" == "2" and Status.NONFINITE_STATE == 2
+    assert Status(5) is Status.SINGULAR_CONSTRAINTS and repr(Status.OK) == "<Status.OK: 0>"
+    h, n_steps = 0.1, 1000
+    expected_step = euler_overflow_step(h, CHAIN_X0, n_steps)
+    with pytest.warns(StabilityWarning), pytest.warns(RuntimeWarning):
+        failed = simulate(chain, CHAIN_X0, n_steps * h, h, "euler")
+    assert str(failed.status) == "NONFINITE_STATE"
+    text = repr(failed)
+    assert text.startswith("Trajectory(method='euler', h=0.1, ")
+    assert f"status=NONFINITE_STATE at step {expected_step} (t = {(expected_step - 1) * h:.6g})" in text
+    ok = simulate(chain, CHAIN_X0, 0.01, 1e-3, "rk4")
+    assert "11 samples, t = 0 .. 0.01" in repr(ok) and repr(ok).endswith("status=OK)")
+
+
 def test_check_returns_an_ok_trajectory(chain):
     traj = simulate(chain, CHAIN_X0, 0.01, 1e-3, "rk4")
     assert traj.check() is traj and traj.failed_step is None and traj.failed_time is None

@@ -26,7 +26,7 @@ from numpy.testing import assert_allclose, assert_array_equal
 
 import lagcodegen.sweep as sweep_module
 from lagcodegen.simulate import Status, simulate
-from lagcodegen.sweep import NOT_RUN, sweep
+from lagcodegen.sweep import CHUNK_FAILED, NOT_RUN, ChunkError, SweepWarning, sweep
 
 pytestmark = pytest.mark.compiler
 
@@ -366,6 +366,42 @@ def test_interrupt_raised_in_worker_keeps_finished_chunks(pendulum, monkeypatch)
         assert_array_equal(getattr(result, name)[done], getattr(full, name)[done], err_msg=name)
     assert_array_equal(result.status[2 * CHUNK:], NOT_RUN)
     assert np.all(np.isnan(result.x_final[2 * CHUNK:]))
+
+
+def failing_chunk_call(real_call, bad_q1: float, error: BaseException):
+    """A `_call` that raises ``error`` for the chunk holding the member with q1 == bad_q1 (as a
+    lost worker or a bug would) and runs the real C call for every other chunk."""
+    def call(job, xs, ps, out):
+        if np.any(xs[:, 0] == bad_q1):
+            raise error
+        real_call(job, xs, ps, out)
+    return call
+
+
+@pytest.mark.parametrize("threads", [1, 3])
+def test_a_failed_chunk_keeps_the_other_members(pendulum, monkeypatch, threads):
+    """Chunk 2 (members 4, 5) raises: before, the exception left sweep() and every finished
+    member was lost. Now its members are CHUNK_FAILED (NaN results), the others equal a clean
+    sweep of the same grid (the reference, itself checked against `simulate` above), the sweep
+    says completed=False, lists the error and warns naming the members and the exception."""
+    grid = {"q1": np.linspace(-1.0, 1.0, N_CHUNK * CHUNK)}
+    full = sweep(pendulum, grid, x0=X0, t0=T0, t_end=T_END, h=H, threads=threads, chunk_size=CHUNK)
+    bad = slice(2 * CHUNK, 3 * CHUNK)
+    monkeypatch.setattr(sweep_module, "_call", failing_chunk_call(sweep_module._call, grid["q1"][4],
+                                                                  MemoryError("out of memory in chunk")))
+    with pytest.warns(SweepWarning, match=r"members 4 to 5 failed \(MemoryError: out of memory in chunk\)"):
+        result = sweep(pendulum, grid, x0=X0, t0=T0, t_end=T_END, h=H, threads=threads, chunk_size=CHUNK)
+    assert not result.completed
+    assert result.errors == (ChunkError(4, 6, "MemoryError: out of memory in chunk"),)
+    assert_array_equal(result.status[bad], CHUNK_FAILED)
+    assert CHUNK_FAILED == -2 and CHUNK_FAILED not in {int(s) for s in Status} | {NOT_RUN}
+    assert_array_equal(result.steps_done[bad], 0)
+    for name in ("x_final", "q_max", "energy_error", "blowup_time"):
+        assert np.all(np.isnan(getattr(result, name)[bad])), name
+    kept = np.ones(result.n_members, bool)
+    kept[bad] = False
+    for name in ("x_final", "q_max", "energy_error", "status", "steps_done", "blowup_time"):
+        assert_array_equal(getattr(result, name)[kept], getattr(full, name)[kept], err_msg=name)
 
 
 # --- progress bar -------------------------------------------------------------------------------

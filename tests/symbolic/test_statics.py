@@ -128,6 +128,51 @@ def test_double_pendulum_general_masses(route):
     np.testing.assert_allclose(lin.natural_frequencies() ** 2, w2, rtol=1e-12)
 
 
+def damped_double_pendulum(damping: str) -> Model:
+    """Point masses m1, m2 on massless rods l1, l2; q1, q2 absolute angles from the downward
+    vertical; viscous joint dampers c1 (pivot, rate qd1) and c2 (elbow, relative rate qd2 - qd1),
+    given as a Rayleigh function or as the generalized forces -dR/dqd it stands for."""
+    m1, m2, l1, l2, g, c1, c2 = sp.symbols("m1 m2 l1 l2 g c1 c2", positive=True)
+    q1, q2 = me.dynamicsymbols("q1 q2")
+    t = me.dynamicsymbols._t
+    qd1, qd2 = q1.diff(t), q2.diff(t)
+    x1, y1 = l1 * sp.sin(q1), -l1 * sp.cos(q1)
+    x2, y2 = x1 + l2 * sp.sin(q2), y1 - l2 * sp.cos(q2)
+    T = sum(m * (x.diff(t) ** 2 + y.diff(t) ** 2) for m, x, y in ((m1, x1, y1), (m2, x2, y2))) / 2
+    V = g * (m1 * y1 + m2 * y2)
+    R = c1 * qd1 ** 2 / 2 + c2 * (qd2 - qd1) ** 2 / 2
+    extra = ({"dissipation": R} if damping == "rayleigh" else
+             {"generalized_forces": {q1: -c1 * qd1 + c2 * (qd2 - qd1), q2: -c2 * (qd2 - qd1)}})
+    return Model(f"damped_double_pendulum_{damping}", [q1, q2], (m1, m2, l1, l2, g, c1, c2),
+                 kinetic_energy=T, potential_energy=V, **extra)
+
+
+@pytest.mark.parametrize("damping", ["rayleigh", "generalized_forces"])
+def test_damped_double_pendulum_matrices_by_hand(damping):
+    """M0, C0, K0 of the damped double pendulum at the downward rest position, typed by hand.
+
+    M0, K0: the textbook linearized double pendulum ([LL] sec. 23 Problem 2, absolute angles):
+        M0 = [[(m1 + m2) l1^2, m2 l1 l2], [m2 l1 l2, m2 l2^2]],  K0 = diag((m1 + m2) g l1, m2 g l2).
+    C0 on paper: R = c1 qd1^2 / 2 + c2 (qd2 - qd1)^2 / 2 is quadratic in qd, so
+        dR/dqd1 = c1 qd1 - c2 (qd2 - qd1) = (c1 + c2) qd1 - c2 qd2,  dR/dqd2 = -c2 qd1 + c2 qd2,
+    and C0 = d2R/dqd2 = [[c1 + c2, -c2], [-c2, c2]]: symmetric, positive definite for c1, c2 > 0.
+    A sign flip of C0 in `linearize` fails here (an undamped model cannot see it).
+    """
+    eom = derive_equations(damped_double_pendulum(damping))
+    m1, m2, l1, l2, g, c1, c2 = (_params(eom)[name] for name in ("m1", "m2", "l1", "l2", "g", "c1", "c2"))
+    M0 = sp.Matrix([[(m1 + m2) * l1 ** 2, m2 * l1 * l2], [m2 * l1 * l2, m2 * l2 ** 2]])
+    C0 = sp.Matrix([[c1 + c2, -c2], [-c2, c2]])
+    K0 = sp.diag((m1 + m2) * g * l1, m2 * g * l2)
+    lin = linearize(eom, [0, 0])
+    for got, want in ((lin.M0, M0), (lin.C0, C0), (lin.K0, K0)):
+        assert sp.simplify(sp.Matrix(got) - want) == sp.zeros(2, 2)
+    values = {"m1": 0.8, "m2": 1.7, "l1": 1.2, "l2": 0.5, "g": 9.81, "c1": 0.3, "c2": 0.45}
+    numeric = linearize(eom, {"q1": 0, "q2": 0}, values=values)
+    np.testing.assert_allclose(numeric.C0, [[0.75, -0.45], [-0.45, 0.45]], rtol=1e-14)
+    np.testing.assert_allclose(numeric.M0, [[2.5 * 1.44, 1.7 * 0.6], [1.7 * 0.6, 1.7 * 0.25]], rtol=1e-14)
+    np.testing.assert_allclose(numeric.K0, np.diag([2.5 * 9.81 * 1.2, 1.7 * 9.81 * 0.5]), rtol=1e-14)
+
+
 @pytest.mark.parametrize("route", ROUTES)
 def test_inverted_double_pendulum_is_unstable(route):
     # upright (pi, pi): K0 = -diag((m1+m2) g l1, m2 g l2), negative definite -> both w^2 < 0
@@ -279,3 +324,22 @@ def test_guesses_need_values(double):
     found = find_equilibria(double, values={}, guesses=[[0.1, -0.2], {"q1": 3.0, "q2": 0.1}])
     flat = [float(s[q]) for s in found for q in double.q]
     assert flat == pytest.approx([0.0, 0.0, math.pi, 0.0])
+
+
+@pytest.mark.parametrize("q0, error, culprit", [
+    ([math.nan, 0.0], ValueError, r"q0 entry for q1\b must be finite"),
+    ({"q1": 0.0, "q2": math.inf}, ValueError, r"q0 entry for q2\b must be finite"),
+    ([0.0, sp.oo], ValueError, r"q0 entry for q2\b must be finite"),
+    (["a", 0.0], TypeError, r"q0 entry for q1\b must be a number"),  # sympify("a") is a new symbol
+    ([0.0, None], TypeError, r"q0 entry for q2\b"),
+])
+def test_non_finite_or_non_numeric_q0_is_refused(double, q0, error, culprit):
+    """Before, NaN gave NaN matrices and "a" a linear model in a stray symbol a."""
+    with pytest.raises(error, match=culprit):
+        linearize(double, q0, values={})
+
+
+@pytest.mark.parametrize("value", [math.nan, math.inf, True])
+def test_non_finite_parameter_values_are_refused(double, value):
+    with pytest.raises(ValueError, match=r"parameter m2 needs a finite number"):
+        linearize(double, [0.0, 0.0], values={"m2": value})

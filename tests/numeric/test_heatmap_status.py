@@ -1,0 +1,52 @@
+"""The status heatmap paints every status code in its own colour.
+
+Before, the colour list had one entry fewer than the codes (NOT_RUN plus six `Status` values), so
+the colormap stretched six colours over seven bins and ``unknown_method`` and
+``singular_constraints`` came out the same. The codes expected here are listed independently of
+heatmap.py: the six C status values 0..5 (``LCG_*``, `Status`) and the sweep's own NOT_RUN (-1)
+and CHUNK_FAILED (-2).
+"""
+from __future__ import annotations
+
+import matplotlib
+import numpy as np
+import pytest
+
+from lagcodegen.heatmap import plot_heatmap
+from lagcodegen.simulate import Status
+from lagcodegen.sweep import CHUNK_FAILED, NOT_RUN, sweep
+
+pytestmark = pytest.mark.compiler
+
+CODES = {-2: "chunk_failed", -1: "not_run", 0: "ok", 1: "singular_mass_matrix", 2: "nonfinite_state",
+         3: "newton_failed", 4: "unknown_method", 5: "singular_constraints"}
+
+
+@pytest.fixture(scope="module")
+def status_figure(compiled_example):
+    """A 2 x 2 grid of the double pendulum; m2 = -0.5 fails (singular mass matrix)."""
+    system = compiled_example("double_pendulum", outputs=("rhs", "energy"), methods=("rk4",))
+    result = sweep(system, {"m2": (-0.5, 1.0), "l2": (0.5, 1.0)}, x0=(0.5, 0.0, 0.0, 0.0), t_end=0.1, h=0.01)
+    assert sorted(set(result.status)) == [0, 1]
+    return plot_heatmap(result, "status")
+
+
+def test_the_codes_are_the_known_ones():
+    assert {int(s): s.name.lower() for s in Status} == {k: v for k, v in CODES.items() if k >= 0}
+    assert (CHUNK_FAILED, NOT_RUN) == (-2, -1)
+
+
+def test_every_status_has_its_own_colour(status_figure):
+    mesh = status_figure.axes[0].collections[0]
+    colours = {code: matplotlib.colors.to_hex(mesh.cmap(mesh.norm(code))) for code in CODES}
+    assert len(set(colours.values())) == len(CODES), colours
+    # each cell shows its member's colour: the failing row (m2 = -0.5) differs from the rest
+    faces = [matplotlib.colors.to_hex(c) for c in mesh.to_rgba(np.asarray(mesh.get_array()).ravel())]
+    assert faces[:2] == [colours[1]] * 2 and faces[2:] == [colours[0]] * 2
+
+
+def test_the_colorbar_names_every_status(status_figure):
+    bar = status_figure.axes[1]
+    ticks = {round(t): label.get_text() for t, label in zip(bar.get_yticks(), bar.get_yticklabels())}
+    assert ticks == CODES
+    assert np.all(np.diff(sorted(ticks)) == 1)
