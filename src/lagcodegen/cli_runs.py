@@ -287,7 +287,7 @@ def print_sweep_summary(result, field: str, elapsed: float, compile_time: float,
 
     from .heatmap import field_values
     from .simulate import Status
-    from .sweep import NOT_RUN
+    from .sweep import SWEEP_STATUS_NAMES
 
     axes = ", ".join(f"{name} ({len(axis)} values {axis.min():g}..{axis.max():g})"
                      for name, axis in zip(result.columns, result.grid or ())) or ", ".join(result.columns)
@@ -295,7 +295,7 @@ def print_sweep_summary(result, field: str, elapsed: float, compile_time: float,
           f"({result.n_members * steps / max(elapsed, 1e-12) / 1e6:.2f} M member-steps/s; "
           f"compile {compile_time:.2f} s)")
     codes, counts = np.unique(result.status, return_counts=True)
-    names = {NOT_RUN: "not_run", **{int(s): s.name.lower() for s in Status}}
+    names = {**SWEEP_STATUS_NAMES, **{int(s): s.name.lower() for s in Status}}
     print("status: " + ", ".join(f"{names.get(int(c), c)} {n}" for c, n in zip(codes, counts)))
     if np.isfinite(result.blowup_time).any():
         first = int(np.nanargmin(result.blowup_time))

@@ -31,6 +31,13 @@ needs_cc = pytest.mark.skipif(not compiler_available(), reason="no C compiler / 
 CDEF = "int lcg_tiny_add(double *out, const double *in, int n);"
 
 
+def _rewrite(path, data: bytes) -> None:
+    """Write ``data`` as a new file (new inode): rewriting a .so in place that this process has
+    loaded changes its mapped pages and crashes the test process (SIGSEGV), not the code under test."""
+    path.unlink()
+    path.write_bytes(data)
+
+
 def tiny_sources(tag: str, body: str = "out[i] = in[i] + 1.0;") -> CSources:
     """A one-function kernel: out[i] = in[i] + 1, returns n."""
     layout = KernelLayout(model="tiny", prefix="lcg_tiny", precision="double",
@@ -212,7 +219,7 @@ def test_rebuild_after_truncated_so(cache_root, compile_counter):
     path, _, _ = _in_subprocess(_worker_build, "truncated", str(cache_root))
     so = Path(path)
     data = so.read_bytes()
-    so.write_bytes(data[: len(data) // 2])
+    _rewrite(so, data[: len(data) // 2])
     system = build_module(tiny_sources("truncated"))
     assert len(compile_counter) == 1 and system.path == so
     assert so.stat().st_size > len(data) // 2
@@ -225,7 +232,7 @@ def test_rebuild_after_unloadable_so(cache_root, compile_counter):
     # Garbage with a matching checksum: only the import attempt can tell.
     path, _, _ = _in_subprocess(_worker_build, "garbage", str(cache_root))
     so = Path(path)
-    so.write_bytes(b"this is not an ELF file")
+    _rewrite(so, b"this is not an ELF file")
     cache.write_marker(so.parent, json.loads(so.parent.joinpath(cache.MARKER).read_text())["key"], so.name)
     assert cache.entry_problem(so.parent, json.loads(so.parent.joinpath(cache.MARKER).read_text())["key"],
                                so.name) is None  # the checksums really match: this is the import path
@@ -329,7 +336,7 @@ def _flip(path: Path, rng, data: bytes | None = None) -> tuple[int, int]:
     data = path.read_bytes() if data is None else data
     offset = int(rng.integers(len(data)))
     new = (data[offset] + int(rng.integers(1, 256))) % 256
-    path.write_bytes(data[:offset] + bytes([new]) + data[offset + 1:])
+    _rewrite(path, data[:offset] + bytes([new]) + data[offset + 1:])
     return offset, data[offset]
 
 
@@ -353,7 +360,7 @@ def test_every_sampled_one_byte_corruption_of_an_entry_is_seen(cache_root):
             offset, _old = _flip(path, rng, data)
             problem = cache.entry_problem(entry, key, so)
             assert problem not in (None, "missing"), f"{path.name}: byte {offset} changed, not seen"
-        path.write_bytes(data)
+        _rewrite(path, data)
         assert cache.entry_problem(entry, key, so) is None
 
 
