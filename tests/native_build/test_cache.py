@@ -38,6 +38,12 @@ def _rewrite(path, data: bytes) -> None:
     path.write_bytes(data)
 
 
+def _replace_with(source, path) -> None:
+    """Copy ``source`` over ``path`` as a new inode, for the same reason as `_rewrite`."""
+    Path(path).unlink()
+    shutil.copy(source, path)
+
+
 def tiny_sources(tag: str, body: str = "out[i] = in[i] + 1.0;") -> CSources:
     """A one-function kernel: out[i] = in[i] + 1, returns n."""
     layout = KernelLayout(model="tiny", prefix="lcg_tiny", precision="double",
@@ -440,16 +446,16 @@ def test_so_that_kills_on_load_is_never_opened(cache_root, tmp_path):
 
     system = build_module(tiny_sources("bomb"))
     blob = pickle.dumps(system)
-    shutil.copy(bomb, system.path)  # tampered after the build: its checksum no longer matches
+    _replace_with(bomb, system.path)  # tampered after the build: its checksum no longer matches
     path, values = _in_subprocess(_unpickle_and_call, blob)
     assert (Path(path), values) == (system.path, [2.0])
     assert cache.entry_problem(system.path.parent, system.key, system.path.name) is None
 
-    shutil.copy(bomb, system.path)
+    _replace_with(bomb, system.path)
     path, values, compiled = _in_subprocess(_worker_build, "bomb", str(cache_root))
     assert (Path(path), values, compiled) == (system.path, [2.0, 3.0], 1)
 
-    shutil.copy(bomb, system.path)  # no sources to rebuild from: a clear error, not a crash
+    _replace_with(bomb, system.path)  # no sources to rebuild from: a clear error, not a crash
     bare = pickle.dumps(dataclasses.replace(system, sources=None))
     with pytest.raises(BuildError, match="checksum") as info:
         _in_subprocess(_unpickle_and_call, bare)
