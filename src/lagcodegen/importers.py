@@ -9,14 +9,15 @@ from __future__ import annotations
 import sympy as sp
 import sympy.physics.mechanics as me
 
-from .equations import assemble, make_substitution, plain_symbols
-from .model import TIME, Model, ModelError
+from .equations import assemble, check_mass_matrix, make_substitution, plain_symbols
+from .model import TIME, Model, ModelError, check_well_defined
 
 
 def derive_from_sympy(model: Model):
     method = _formed_method(model.sympy_model)
     coords = tuple(method.q)
     if isinstance(method, me.LagrangesMethod):
+        check_well_defined("the sympy model's Lagrangian", sp.sympify(method._L))  # private: sympy 1.14 keeps L only there
         if len(method.lam_vec) > 0:
             raise ModelError("LagrangesMethod with constraint multipliers is not supported yet: "
                              "give the model in independent coordinates")
@@ -24,8 +25,6 @@ def derive_from_sympy(model: Model):
         kin_dynamic = sp.Matrix(speeds)
         route = "sympy LagrangesMethod (Lagrange II)"
     else:
-        if len(method._udep) or len(method._uaux):
-            raise ModelError("KanesMethod with dependent or auxiliary speeds is not supported yet")
         speeds = tuple(method.u)
         kindiff = method.kindiffdict()
         kin_dynamic = sp.Matrix([kindiff[c.diff(TIME)] for c in coords])
@@ -37,6 +36,10 @@ def derive_from_sympy(model: Model):
     M = to_plain(method.mass_matrix.xreplace(qdot_table), "mass matrix")
     F = to_plain(method.forcing.xreplace(qdot_table), "forcing")
     K = to_plain(kin_dynamic, "kinematic equations")
+    for what, matrix in (("mass matrix", M), ("forcing", F), ("kinematic equations", K)):
+        for (i, j), entry in sorted(matrix.todok().items()):
+            check_well_defined(f"the sympy model's {what}, entry ({i}, {j})", entry)
+    check_mass_matrix(M, coords, u)
     T, V = _energies(method, model, to_plain)
     eom = assemble(model, coords, speeds, q, u, M, F, K, T, V, to_plain)
     return _with_route(eom, route)

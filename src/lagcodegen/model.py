@@ -12,6 +12,7 @@ A model is stated in one of three ways, all consumed by `derive.derive_equations
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Any, Mapping, Sequence
 
@@ -140,6 +141,7 @@ class Model:
         set_("parameter_values", self._checked_values())
         set_("constraints", tuple(_as_expr(c, f"constraint {i}") for i, c in enumerate(self.constraints)))
         self._check_route()
+        self._check_connected()
         self._check_symbols()
 
     @property
@@ -193,11 +195,19 @@ class Model:
         return forces
 
     def _checked_values(self) -> dict:
+        """Values by parameter Symbol; keys may be the Symbols or their names."""
+        by_name = {p.name: p for p in self.parameters}
+        declared = ", ".join(by_name) or "none"
         values = {}
-        for p, v in dict(self.parameter_values).items():
+        for key, value in dict(self.parameter_values).items():
+            p = by_name.get(key) if isinstance(key, str) else key
             if p not in self.parameters:
-                raise ModelError(f"value given for {p!r}, which is not a declared parameter")
-            values[p] = float(v)
+                if isinstance(key, sp.Symbol) and key.name in by_name:
+                    raise ModelError(
+                        f"value given for {key.name!r} with assumptions {key.assumptions0}, but the declared "
+                        f"parameter {key.name!r} has {by_name[key.name].assumptions0}; use the same Symbol")
+                raise ModelError(f"value given for {key!r}, which is not a declared parameter (declared: {declared})")
+            values[p] = finite_number(value, f"parameter_values[{p.name!r}]")
         return values
 
     def _check_route(self) -> None:
@@ -216,13 +226,48 @@ class Model:
             if not isinstance(body, (me.Particle, me.RigidBody)):
                 raise ModelError(f"body {body!r} is not a sympy Particle or RigidBody")
 
+    def _check_connected(self) -> None:
+        """Every body, load and Point output can be located in ``frame`` from ``origin``: sympy's
+        bare "No Connecting Path" would otherwise surface mid-derivation, naming no input."""
+        if self.frame is None or self.origin is None:
+            return
+        located = [(f"body {body.name!r} (its mass centre {body.masscenter.name})", body.masscenter)
+                   for body in self.bodies]
+        located += [(f"load on point {load.where.name}", load.where) for load in self.loads
+                    if not load.is_torque]
+        located += [(f"point output {name!r}", pos) for name, pos in self.points.items()
+                    if isinstance(pos, me.Point)]
+        for what, point in located:
+            try:
+                point.pos_from(self.origin)
+            except ValueError as error:
+                raise ModelError(f"{what} has no position relative to origin {self.origin.name}: "
+                                 f"set it with {point.name}.set_pos(...) ({error})") from None
+        oriented = [(f"body {body.name!r} (its frame {body.frame})", body.frame) for body in self.bodies
+                    if isinstance(body, me.RigidBody)]
+        oriented += [(f"torque load on frame {load.where}", load.where) for load in self.loads if load.is_torque]
+        for what, frame in oriented:
+            try:
+                frame.dcm(self.frame)
+            except ValueError as error:
+                raise ModelError(f"{what} is not oriented relative to the inertial frame {self.frame}: "
+                                 f"orient it with {frame}.orient_axis(...) ({error})") from None
+
     def _check_symbols(self) -> None:
-        """Every free symbol is t or declared; every function of t is a coordinate."""
+        """Every free symbol is t or declared; every function of t is a coordinate; no nan,
+        infinity or imaginary unit; no speed in V or phi; no acceleration anywhere."""
         exprs = [("kinetic_energy", self.kinetic_energy), ("potential_energy", self.potential_energy),
                  ("dissipation", self.dissipation)]
         exprs += [(f"generalized force on {q}", Q) for q, Q in self.generalized_forces.items()]
         for body in self.bodies:
             exprs.append((f"mass of {body.name}", _as_expr(body.mass, f"mass of {body.name}")))
+            if isinstance(body, me.RigidBody):
+                exprs += [(f"inertia of {body.name}", entry) for entry in _dyadic_entries(body.inertia[0])]
+            exprs += [(f"position of body {body.name}", entry)
+                      for entry in _vector_entries(body.masscenter.pos_from(self.origin))]
+        for load in self.loads:
+            kind = "torque on frame" if load.is_torque else "force on point"
+            exprs += [(f"{kind} {load.where.name}", entry) for entry in _vector_entries(load.vector)]
         for name, pos in self.points.items():
             if not isinstance(pos, me.Point):
                 if not isinstance(pos, (tuple, list)) or len(pos) not in (2, 3):
@@ -233,14 +278,71 @@ class Model:
             if not isinstance(self.gravity, me.Vector):
                 raise ModelError(f"gravity must be a sympy.physics.vector Vector (e.g. -g*N.y), got {self.gravity!r}")
             exprs.append(("gravity", components(self.gravity, self.frame)))
+        for name, pos in self.points.items():
+            if isinstance(pos, me.Point):
+                exprs += [(f"point {name!r}", entry) for entry in _vector_entries(pos.pos_from(self.origin))]
         for i, phi in enumerate(self.constraints):
             if phi.atoms(sp.Derivative):
-                raise ModelError(f"constraint {i} ({phi}) contains speeds: only holonomic constraints "
-                                 "phi(q, t) = 0 are supported")
+                raise ModelError(f"constraint {i} ({phi}) contains speeds "
+                                 f"{', '.join(map(str, sorted(phi.atoms(sp.Derivative), key=str)))}: only "
+                                 "holonomic constraints phi(q, t) = 0 are supported")
             if not _dynamic_functions(phi) & set(self.coordinates):
                 raise ModelError(f"constraint {i} ({phi}) involves no coordinate")
             exprs.append((f"constraint {i}", phi))
+        speeds = sorted(self.potential_energy.atoms(sp.Derivative), key=str)
+        if speeds:
+            raise ModelError(f"potential_energy contains the speed {speeds[0]}: V must be a function of the "
+                             "coordinates and t only; put velocity-dependent terms in kinetic_energy or "
+                             "generalized_forces")
+        for what, expr in exprs:
+            check_well_defined(what, expr)
         check_declared(exprs, self.parameters, self.coordinates)
+
+
+_UNDEFINED_ATOMS = ((sp.nan, "nan"), (sp.zoo, "complex infinity (zoo)"), (sp.oo, "infinity (oo)"),
+                    (sp.S.NegativeInfinity, "-infinity (-oo)"), (sp.I, "the imaginary unit I"))
+
+
+def check_well_defined(what: str, expr: sp.Basic) -> None:
+    """Raise `ModelError` when ``expr`` holds nan, an infinity, I or an acceleration: sympy folds
+    ``V + nan`` to nan, whose derivative is 0, so the term would vanish without a word."""
+    if expr is None or not isinstance(expr, sp.Basic):
+        return
+    for atom, label in _UNDEFINED_ATOMS:
+        if expr == atom:
+            raise ModelError(f"{what} is {label} (a nan or infinite value folds the whole expression)")
+        if expr.has(atom):
+            raise ModelError(f"{what} contains {label}: {expr}")
+    accelerations = sorted((d for d in expr.atoms(sp.Derivative) if d.derivative_count > 1), key=str)
+    if accelerations:
+        raise ModelError(f"{what} contains the acceleration {accelerations[0]}: energies, forces and "
+                         "positions may depend on coordinates, speeds and t only")
+
+
+def finite_number(value: Any, what: str) -> float:
+    """``value`` as a finite float, or a `ModelError` naming ``what``."""
+    if isinstance(value, bool) or isinstance(value, (str, bytes)):
+        raise ModelError(f"{what} must be a finite number, got {type(value).__name__} {value!r}")
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        raise ModelError(f"{what} must be a finite number, got {type(value).__name__} {value!r}") from None
+    if not math.isfinite(number):
+        raise ModelError(f"{what} must be a finite number, got {value!r}")
+    return number
+
+
+def _vector_entries(vector) -> list:
+    """Every measure number of a sympy Vector, in the frames it is stored in."""
+    if not isinstance(vector, me.Vector):
+        return []
+    # nan * N.x builds a Vector whose measure is a bare nan instead of a (3, 1) Matrix
+    return [entry for measure, _frame in vector.args
+            for entry in (measure if isinstance(measure, sp.MatrixBase) else [measure])]
+
+
+def _dyadic_entries(dyadic) -> list:
+    return [coefficient for coefficient, _first, _second in getattr(dyadic, "args", ())]
 
 
 def check_declared(exprs, parameters, coordinates, extra=()) -> None:
@@ -291,9 +393,33 @@ def _as_load(load: Any) -> Load:
 
 def _sympy_model_coordinates(obj: Any) -> list:
     if isinstance(obj, me.System):
+        _check_speeds(type(obj).__name__, obj.q_ind, obj.q_dep, obj.u_ind, obj.u_dep, obj.u_aux)
         return list(obj.q)
     if isinstance(obj, me.LagrangesMethod):
         return list(obj.q)
     if isinstance(obj, me.KanesMethod):
+        # sympy keeps the split of the speeds in private attributes only (sympy 1.14)
+        _check_speeds(type(obj).__name__, obj._qdep and obj.q[:len(obj.q) - len(obj._qdep)] or obj.q,
+                      obj._qdep, obj.u[:len(obj.u) - len(obj._udep)], obj._udep, obj._uaux)
         return list(obj.q)
     raise ModelError(f"sympy_model must be a LagrangesMethod, KanesMethod or System, got {type(obj).__name__}")
+
+
+def _check_speeds(kind: str, q_ind, q_dep, u_ind, u_dep, u_aux) -> None:
+    """One independent generalized speed per independent coordinate, nothing else: with more
+    speeds, M would be solved in a leading block only; with fewer, speeds would go missing."""
+    names = lambda symbols: ", ".join(map(str, symbols)) or "none"  # noqa: E731
+    unsupported = "velocity constraints and auxiliary speeds are not supported yet"
+    if len(q_dep):
+        raise ModelError(f"{kind} has dependent coordinates ({names(q_dep)}): configuration constraints "
+                         f"are not supported in sympy models yet; give the model in independent "
+                         f"coordinates, or state it with Model(constraints=...)")
+    if len(u_dep):
+        raise ModelError(f"{kind} has dependent speeds ({names(u_dep)}): {unsupported}")
+    if len(u_aux):
+        raise ModelError(f"{kind} has auxiliary speeds ({names(u_aux)}): {unsupported}")
+    if len(u_ind) != len(q_ind):
+        raise ModelError(
+            f"{kind} has {len(u_ind)} independent speeds ({names(u_ind)}) for {len(q_ind)} coordinates "
+            f"({names(q_ind)}): lagcodegen needs one generalized speed per coordinate (qd = K(q, u, t) "
+            f"solved for all of qd); {unsupported}")

@@ -69,12 +69,11 @@ def test_undeclared_symbol_in_generalized_force():
 
 
 def test_undeclared_symbol_in_a_body_position_names_the_body():
-    # Body positions are only read when deriving; the message names the body and the symbol.
+    # Body positions are read when the model is validated; the message names the body and the symbol.
     N, O = me.ReferenceFrame("N"), me.Point("O")
     ball = me.Particle("ball", O.locatenew("P", (x + l) * N.x), m)
-    model = Model("bad", [x], [m], bodies=[ball], frame=N, origin=O)
     with raises_naming("ball", "l") as info:
-        derive_equations(model)
+        Model("bad", [x], [m], bodies=[ball], frame=N, origin=O)
     assert "not declared" in str(info.value)
 
 

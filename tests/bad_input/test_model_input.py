@@ -1,0 +1,250 @@
+"""Model descriptions that used to derive a wrong model without a word, or crash naming nothing.
+
+Issue 11, items 1-3 and the model-level bullets: nan, infinities and I in any input; speeds in V
+or phi; accelerations anywhere; sympy models whose speeds do not match their coordinates; bodies,
+loads and points sympy cannot locate; parameter values keyed by name, or not numbers. Each case
+asserts `ModelError` and that the message names the input (and the culprit where there is one).
+"""
+from __future__ import annotations
+
+import re
+
+import pytest
+import sympy as sp
+import sympy.physics.mechanics as me
+
+from lagcodegen import Model, ModelError, derive_equations
+
+t = me.dynamicsymbols._t
+m, k, c, r, g = sp.symbols("m k c r g", positive=True)
+x, y = me.dynamicsymbols("x y")
+xd = x.diff(t)
+T_x = m * xd ** 2 / 2
+V_x = k * x ** 2 / 2
+
+
+def raises_naming(*names: str):
+    """pytest.raises(ModelError) whose message contains every string in ``names``."""
+    pattern = "".join(rf"(?=.*{re.escape(n)})" for n in names)
+    return pytest.raises(ModelError, match=re.compile(pattern, re.S))
+
+
+def oscillator(**fields):
+    fields.setdefault("kinetic_energy", T_x)
+    fields.setdefault("potential_energy", V_x)
+    return Model("osc", [x], [m, k, c], **fields)
+
+
+UNDEFINED = {
+    "nan float": float("nan"),
+    "nan": sp.nan,
+    "zoo": sp.zoo,
+    "oo": sp.oo,
+    "-oo": -sp.oo,
+    "I": sp.I,
+}
+
+
+@pytest.mark.parametrize("value", list(UNDEFINED.values()), ids=list(UNDEFINED))
+@pytest.mark.parametrize("field, build, label", [
+    ("potential_energy", lambda bad: V_x + bad, "potential_energy"),
+    ("potential_energy", lambda bad: bad * x, "potential_energy"),
+    ("kinetic_energy", lambda bad: T_x + bad * xd ** 2, "kinetic_energy"),
+    ("dissipation", lambda bad: bad * c * xd ** 2, "dissipation"),
+    ("generalized_forces", lambda bad: {x: -c * xd + bad}, "generalized force on x(t)"),
+], ids=["V+bad", "bad*x", "T", "R", "Q"])
+def test_energies_route_refuses_undefined_values(field, build, label, value):
+    # sympy folds V + nan to nan, whose derivative is 0: the spring vanished and the run said OK.
+    with raises_naming(label):
+        oscillator(**{field: build(value)})
+
+
+@pytest.mark.parametrize("value", [sp.nan, sp.zoo, sp.oo], ids=["nan", "zoo", "oo"])
+def test_undefined_value_times_zero_is_refused(value):
+    # 0*nan, 0*zoo and 0*oo are all nan in sympy: V = 0*nan used to become a free spring-less model.
+    with raises_naming("potential_energy is nan"):
+        oscillator(potential_energy=0 * value)
+
+
+@pytest.mark.parametrize("value", [sp.nan, sp.zoo, sp.oo, sp.I], ids=["nan", "zoo", "oo", "I"])
+def test_constraint_and_point_output_refuse_undefined_values(value):
+    with raises_naming("constraint 0"):
+        Model("pair", [x, y], [m, k], kinetic_energy=m * (xd ** 2 + y.diff(t) ** 2) / 2,
+              constraints=[x - y + value])
+    with raises_naming("point 'tip'"):
+        oscillator(points={"tip": (x, value * x)})
+
+
+def _ball_on_rail(along=x, mass=m, load=None, inertia=None):
+    """A ball at ``along`` * N.x from O; optionally a load ``load`` * N.x on it and, when
+    ``inertia`` is given, a rigid ball with that moment about its first axis."""
+    N, O = me.ReferenceFrame("N"), me.Point("O")
+    P = O.locatenew("P", along * N.x)
+    if inertia is None:
+        body = me.Particle("ball", P, mass)
+    else:
+        B = N.orientnew("B", "Axis", [0, N.z])
+        body = me.RigidBody("ball", P, B, mass, (me.inertia(B, inertia, 1, 1), P))
+    loads = [(P, load * N.x)] if load is not None else []
+    return dict(bodies=[body], frame=N, origin=O, loads=loads)
+
+
+@pytest.mark.parametrize("value", [sp.nan, sp.zoo, sp.oo, sp.I], ids=["nan", "zoo", "oo", "I"])
+@pytest.mark.parametrize("where, label", [
+    ("along", "position of body ball"),
+    ("mass", "mass of ball"),
+    ("load", "force on point P"),
+    ("inertia", "inertia of ball"),
+])
+def test_bodies_route_refuses_undefined_values(where, label, value):
+    bad = {"along": x + value, "mass": m + value, "load": -k * x + value, "inertia": m * value}[where]
+    with raises_naming(label):
+        Model("rail", [x], [m, k], **_ball_on_rail(**{where: bad}))
+
+
+def test_speed_in_potential_energy_is_named():
+    # V = k xd^2/2 + k x^2/2 used to derive F = -k x: the speed term vanished in dV/dq.
+    with raises_naming("potential_energy", "Derivative(x(t), t)"):
+        oscillator(potential_energy=k * xd ** 2 / 2 + V_x)
+
+
+def test_speed_in_a_holonomic_constraint_is_named():
+    with raises_naming("constraint 0", "Derivative(x(t), t)"):
+        Model("pair", [x, y], [m], kinetic_energy=m * (xd ** 2 + y.diff(t) ** 2) / 2,
+              constraints=[xd - y])
+
+
+@pytest.mark.parametrize("field, build, label", [
+    ("kinetic_energy", lambda a: T_x + m * x * a, "kinetic_energy"),
+    ("generalized_forces", lambda a: {x: -m * a}, "generalized force on x(t)"),
+    ("dissipation", lambda a: c * a ** 2, "dissipation"),
+], ids=["T", "Q", "R"])
+def test_accelerations_are_refused(field, build, label):
+    with raises_naming(label, "Derivative(x(t), (t, 2))"):
+        oscillator(**{field: build(x.diff(t, 2))})
+
+
+def test_acceleration_in_a_load_is_refused():
+    setup = _ball_on_rail(load=-m * x.diff(t, 2))
+    with raises_naming("force on point P", "(t, 2)"):
+        Model("rail", [x], [m, k], **setup)
+
+
+# -- sympy models whose speeds do not match their coordinates ------------------------------------
+def _rolling_disk_kane(u_ind_extra=False, auxiliary=False):
+    """sympy's own test model (sympy/physics/mechanics/tests/test_kane.py, test_aux): a disk on
+    the ground with 3 coordinates and the contact point's 2 speeds, either as extra independent
+    speeds (KM: 3 q, 5 u) or as auxiliary speeds (KM2)."""
+    q1, q2, q3, u1, u2, u3 = me.dynamicsymbols("q1 q2 q3 u1 u2 u3")
+    u4, u5 = me.dynamicsymbols("u4 u5")
+    N = me.ReferenceFrame("N")
+    Y = N.orientnew("Y", "Axis", [q1, N.z])
+    L = Y.orientnew("L", "Axis", [q2, Y.x])
+    R = L.orientnew("R", "Axis", [q3, L.y])
+    w_R_N_qd = R.ang_vel_in(N)
+    R.set_ang_vel(N, u1 * L.x + u2 * L.y + u3 * L.z)
+    C = me.Point("C")
+    C.set_vel(N, u4 * L.x + u5 * (Y.z ^ L.x))
+    Dmc = C.locatenew("Dmc", r * L.z)
+    Dmc.v2pt_theory(C, N, R)
+    inertia = me.inertia(L, m / 4 * r ** 2, m / 2 * r ** 2, m / 4 * r ** 2)
+    kd = [me.dot(R.ang_vel_in(N) - w_R_N_qd, uv) for uv in L]
+    disk = me.RigidBody("disk", Dmc, R, m, (inertia, Dmc))
+    if u_ind_extra:
+        method = me.KanesMethod(N, q_ind=[q1, q2, q3], u_ind=[u1, u2, u3, u4, u5], kd_eqs=kd)
+    else:
+        method = me.KanesMethod(N, q_ind=[q1, q2, q3], u_ind=[u1, u2, u3], kd_eqs=kd,
+                                u_auxiliary=[u4, u5] if auxiliary else [])
+    method.kanes_equations([disk], [(Dmc, -m * g * Y.z)])
+    return method
+
+
+def test_kane_with_more_speeds_than_coordinates_is_refused():
+    # It used to compile, solve a leading 3x3 block of the 5x5 M and return uninitialized memory
+    # for u4', u5' with status OK.
+    with raises_naming("5 independent speeds", "3 coordinates", "u4(t)", "not supported"):
+        Model("km1", parameters=[r, m, g], sympy_model=_rolling_disk_kane(u_ind_extra=True))
+
+
+def test_kane_with_auxiliary_speeds_is_refused():
+    with raises_naming("auxiliary speeds", "u4(t), u5(t)", "not supported"):
+        Model("km2", parameters=[r, m, g], sympy_model=_rolling_disk_kane(auxiliary=True))
+
+
+def test_kane_with_dependent_speeds_is_refused():
+    # A wheel rolling on a line that keeps its angle: theta' = -x'/r, one independent speed for
+    # two coordinates. It used to crash with IndexError.
+    xw, theta, ux, utheta = me.dynamicsymbols("x_w theta u_x u_theta")
+    N = me.ReferenceFrame("N")
+    W = N.orientnew("W", "Axis", [theta, N.z])
+    W.set_ang_vel(N, utheta * N.z)
+    P = me.Point("P")
+    P.set_vel(N, ux * N.x)
+    wheel = me.RigidBody("wheel", P, W, m, (me.inertia(W, 1, 1, m * r ** 2 / 2), P))
+    method = me.KanesMethod(N, q_ind=[xw, theta], u_ind=[ux], u_dependent=[utheta],
+                            kd_eqs=[xw.diff(t) - ux, theta.diff(t) - utheta],
+                            velocity_constraints=[utheta + ux / r])
+    method.kanes_equations([wheel], [])
+    with raises_naming("dependent speeds", "u_theta(t)", "not supported"):
+        Model("wheel", parameters=[r, m], sympy_model=method)
+
+
+def test_lagranges_method_with_nan_lagrangian_is_refused():
+    L = T_x - V_x + sp.nan * x
+    method = me.LagrangesMethod(L, [x])
+    method.form_lagranges_equations()
+    with raises_naming("sympy model", "nan"):
+        derive_equations(Model("nan_lagrangian", parameters=[m, k], sympy_model=method))
+
+
+# -- bodies, loads and points sympy cannot locate ("No Connecting Path") -------------------------
+def test_body_with_no_path_to_the_origin_is_named():
+    N, O = me.ReferenceFrame("N"), me.Point("O")
+    floating = me.Point("floating")  # never located relative to O
+    ball = me.Particle("ball", floating, m)
+    with raises_naming("body 'ball'", "floating", "origin O"):
+        Model("lost", [x], [m], bodies=[ball], frame=N, origin=O)
+
+
+def test_load_on_an_unlocated_point_is_named():
+    setup = _ball_on_rail()
+    stray = me.Point("stray")
+    setup["loads"] = [(stray, -k * x * setup["frame"].x)]
+    with raises_naming("load on point stray"):
+        Model("rail", [x], [m, k], **setup)
+
+
+def test_point_output_with_no_path_is_named():
+    setup = _ball_on_rail()
+    with raises_naming("point output 'marker'", "marker"):
+        Model("rail", [x], [m, k], points={"marker": me.Point("marker")}, **setup)
+
+
+def test_rigid_body_frame_not_oriented_is_named():
+    N, O = me.ReferenceFrame("N"), me.Point("O")
+    B = me.ReferenceFrame("B")  # never oriented relative to N
+    P = O.locatenew("P", x * N.x)
+    disk = me.RigidBody("disk", P, B, m, (me.inertia(B, 1, 1, 1), P))
+    with raises_naming("body 'disk'", "frame B", "inertial frame N"):
+        Model("lost", [x], [m], bodies=[disk], frame=N, origin=O)
+
+
+# -- parameter values --------------------------------------------------------------------------
+def test_parameter_values_accept_names():
+    model = oscillator(parameter_values={"m": 2, "k": 8.0, c: 0.5})
+    assert model.parameter_values == {m: 2.0, k: 8.0, c: 0.5}
+
+
+@pytest.mark.parametrize("values, names", [
+    ({"mass": 1}, ["'mass'", "declared: m, k, c"]),
+    ({m: float("nan")}, ["parameter_values['m']", "nan"]),
+    ({k: float("inf")}, ["parameter_values['k']", "inf"]),
+    ({m: "1.0"}, ["parameter_values['m']", "str"]),
+    ({m: True}, ["parameter_values['m']", "bool"]),
+    ({m: None}, ["parameter_values['m']", "NoneType"]),
+    ({m: x}, ["parameter_values['m']"]),
+    ({sp.Symbol("m"): 1.0}, ["'m'", "assumptions", "same Symbol"]),
+], ids=["unknown name", "nan", "inf", "string", "bool", "None", "expression", "assumptions"])
+def test_bad_parameter_values_are_named(values, names):
+    with raises_naming(*names):
+        oscillator(parameter_values=values)
