@@ -117,9 +117,11 @@ def _require_tool_fixture():
     return require_tool
 
 
-@pytest.fixture(scope="session")
+@pytest.fixture(scope="session", autouse=True)
 def kernel_cache_dir(tmp_path_factory):
     """A private lagcodegen cache dir, exported as ``LAGCODEGEN_CACHE_DIR`` for the session.
+
+    Autouse: no test, fixture or module-level compile writes into the user's own cache.
 
     Session scope cannot use ``monkeypatch``, so the old value is saved and restored by hand.
     """

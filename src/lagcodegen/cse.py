@@ -165,7 +165,13 @@ def _checked_fixed(eom: EquationsOfMotion, fixed: Mapping) -> tuple:
         if name not in by_name:
             raise KernelError(f"cannot fix {name!r}: not a parameter of {eom.name!r} "
                               f"(parameters: {', '.join(by_name)})")
-        value = float(value)
+        if isinstance(value, (bool, str, bytes)):
+            raise KernelError(f"fixed parameter {name!r} must be a real number, got {type(value).__name__} {value!r}")
+        try:
+            value = float(value)
+        except (TypeError, ValueError):
+            raise KernelError(f"fixed parameter {name!r} must be a real number, got "
+                              f"{type(value).__name__} {value!r}") from None
         if value != value or value in (float("inf"), float("-inf")):
             raise KernelError(f"fixed parameter {name!r} has a non-finite value {value}")
         values.append((by_name[name], value))

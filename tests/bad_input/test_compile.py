@@ -46,6 +46,14 @@ def test_non_numeric_fixed_value_names_the_parameter(pendulum, fresh_cache, valu
     assert not fresh_cache.exists() or not any(fresh_cache.rglob("*.so"))  # nothing was built
 
 
+@pytest.mark.parametrize("value", ["abc", None, True, float("nan"), [9.81], object()],
+                         ids=lambda v: type(v).__name__)
+def test_reduce_expressions_names_a_non_numeric_fixed_value(pendulum, value):
+    # the stage called directly (without compile_model's check) used to raise float()'s bare error
+    with pytest.raises(KernelError, match="'g'"):
+        reduce_expressions(pendulum, ["rhs"], {"g": value})
+
+
 @pytest.mark.parametrize("key, culprit, what", [
     ("gravity", "gravity", "not a parameter"),
     (sp.Symbol("k"), "k", "not a parameter"),

@@ -111,17 +111,16 @@ def test_package_digest_covers_the_emitter_modules():
     assert {"stepper_context.py", "emit.py", "cse.py", "printer.py"} <= {p.name for p in package.glob("*.py")}
 
 
+@pytest.mark.compiler
 @pytest.mark.parametrize("model", ["double_pendulum", "slider_crank"])
-def test_build_parts_define_every_exported_function_once(model, tmp_path):
+def test_build_parts_define_every_exported_function_once(model, tmp_path, require_tool):
     """LCG_BUILD_PART 1 and 2 (the parallel build) together define each exported function
     exactly once, and part 0 (the default, the embedded build) defines all of them."""
-    import shutil
     import subprocess
 
     from lagcodegen.schemes import DEFAULT_METHODS
 
-    if shutil.which("gcc") is None or shutil.which("nm") is None:
-        pytest.skip("needs gcc and nm")
+    gcc, nm_tool = require_tool("gcc"), require_tool("nm")
     eom = derive_equations(getattr(catalog, model)())
     methods = [m for m in DEFAULT_METHODS if not eom.m or m in ("rk4", "dopri5", "euler")]
     outputs = ["rhs", "mass_matrix", "energy"] + (["jacobian", "momentum"] if not eom.m else
@@ -132,9 +131,9 @@ def test_build_parts_define_every_exported_function_once(model, tmp_path):
     defined = {}
     for part in (0, 1, 2):
         obj = tmp_path / f"part{part}.o"
-        subprocess.run(["gcc", "-O0", "-std=c99", f"-DLCG_BUILD_PART={part}", "-c",
+        subprocess.run([gcc, "-O0", "-std=c99", f"-DLCG_BUILD_PART={part}", "-c",
                         str(tmp_path / sources.source_name), "-o", str(obj)], check=True)
-        nm = subprocess.run(["nm", "--defined-only", "-g", str(obj)], capture_output=True, text=True, check=True)
+        nm = subprocess.run([nm_tool, "--defined-only", "-g", str(obj)], capture_output=True, text=True, check=True)
         defined[part] = [line.split()[-1] for line in nm.stdout.splitlines() if line.split()[1] == "T"]
     exported = sorted(defined[0])
     assert f"{sources.layout.prefix}_simulate" in exported and f"{sources.layout.prefix}_step_rk4" in exported
