@@ -87,7 +87,7 @@ PRECISIONS = ("double", "float")
 STATUS_CODES = (
     ("LCG_OK", 0, "success"),
     ("LCG_SINGULAR_MASS_MATRIX", 1, "a pivot of the LDL^T factorization of M was not positive"),
-    ("LCG_NONFINITE_STATE", 2, "the state became NaN or infinite"),
+    ("LCG_NONFINITE_STATE", 2, "the state or its derivatives became NaN or infinite"),
     ("LCG_NEWTON_FAILED", 3, "an implicit step's Newton iteration did not converge"),
     ("LCG_UNKNOWN_METHOD", 4, "the method number is not compiled into this kernel"),
     ("LCG_SINGULAR_CONSTRAINTS", 5, "the constraint Jacobian lost rank (a singular configuration)"),
@@ -186,6 +186,8 @@ def render_sources(system: ReducedSystem, precision: str = "double", model_name:
     printer = _KernelPrinter(precision=precision, names=names.symbols, trig=trig)
     real = precision
     functions = []
+    if any(out in system.outputs for out in _CHECKED_OUTPUTS):
+        functions.append(_finite_result_record(names.prefix, real))
     if any(out in system.outputs for out in ("accel", "rhs", "multipliers")):
         functions += _dynamics_records(system, names, printer, real)
         if system.n_constraints and any(out in system.outputs for out in ("accel", "rhs")):
@@ -342,11 +344,12 @@ def _function_record(system, kernel, names, printer, real, output):
             body.append(f"F[{j}] = {_print(printer, expr, f'F[{j}]')};")
         return record(f"void {prefix}_forcing({args}, {real} *F)", f"Forcing F(q, u, t), {n} values.", body)
     if output == "accel":
-        body = [f"{real} qd[{n}];", f"return {prefix}_dynamics(t, x, p, qd, ud, 0);"]
+        body = [f"{real} qd[{n}];",
+                f"return {prefix}_finite_result({prefix}_dynamics(t, x, p, qd, ud, 0), ud, {n});"]
         return record(f"int {prefix}_accel({args}, {real} *ud)",
                        "Generalized accelerations ud solving M ud = F; returns a status code.", body)
     if output == "rhs":
-        body = [f"return {prefix}_dynamics(t, x, p, xdot, xdot + {n}, 0);"]
+        body = [f"return {prefix}_finite_result({prefix}_dynamics(t, x, p, xdot, xdot + {n}, 0), xdot, {2 * n});"]
         return record(f"int {prefix}_rhs({args}, {real} *xdot)",
                        f"First-order right-hand side xdot = f(t, x), x = (q, u), {2 * n} values; "
                        "returns a status code. xdot must not alias x.", body)
@@ -365,7 +368,9 @@ def _function_record(system, kernel, names, printer, real, output):
     if output == "jacobian":
         return _jacobian_record(system, kernel, names, printer, real)
     if output == "multipliers":
-        body = [f"{real} qd[{n}], ud[{n}];", f"return {prefix}_dynamics_constrained(t, x, p, qd, ud, lam, Q, 0);"]
+        body = [f"{real} qd[{n}], ud[{n}];",
+                f"const int status = {prefix}_dynamics_constrained(t, x, p, qd, ud, lam, Q, 0);",
+                f"return {prefix}_finite_result(status, lam, {system.n_constraints});"]
         return record(f"int {prefix}_multipliers({args}, {real} *lam, {real} *Q)",
                       f"Multipliers lam ({system.n_constraints}) and generalized constraint forces "
                       f"Q = A^T lam ({n}, or NULL): M ud = F - A^T lam.", body)
@@ -483,6 +488,21 @@ def _constrained_solve_lines(kernel, printer, real, n, m, nonzero, failure, pref
     return body
 
 
+#: outputs returning a status whose values are checked for NaN and infinity before LCG_OK
+_CHECKED_OUTPUTS = ("accel", "rhs", "multipliers", "jacobian")
+
+
+def _finite_result_record(prefix: str, real: str) -> dict:
+    """A finite state can still give NaN or infinite derivatives (F overflowing for a huge
+    parameter, 0 * inf): the public kernels report that instead of LCG_OK. The drivers' own
+    steps are checked on the new state, so the steppers do not pay for this."""
+    return record(f"int {prefix}_finite_result(int status, const {real} *values, int count)",
+                  "status, or LCG_NONFINITE_STATE when status is LCG_OK but a value is NaN or infinite.",
+                  ["int i;", "if (status != LCG_OK) return status;",
+                   "for (i = 0; i < count; ++i) {", "    if (!isfinite(values[i])) return LCG_NONFINITE_STATE;",
+                   "}", "return LCG_OK;"], static=True)
+
+
 def _jacobian_record(system, kernel, names, printer, real) -> dict:
     """J = df/dx of the first-order system: [[dK/dq, dK/du], [-M^-1 dG/dq, -M^-1 dG/du]]."""
     n, prefix = len(system.q), names.prefix
@@ -515,7 +535,7 @@ def _jacobian_record(system, kernel, names, printer, real) -> dict:
     solve = ldlt_substitution_lines(n, LD, real, lambda i: f"B[{i}][c]",
                                     lambda i: f"J[{(n + i) * size} + c]")
     body += ["    " + line for line in solve]
-    body += ["}", "return LCG_OK;"]
+    body += ["}", f"return {prefix}_finite_result(LCG_OK, J, {size * size});"]
     return record(f"int {prefix}_jacobian({real} t, const {real} *x, const {real} *p, {real} *J)",
                    f"Jacobian df/dx of the first-order right-hand side, row-major {size} x {size}; "
                    "returns a status code.", body)

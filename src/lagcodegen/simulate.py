@@ -49,7 +49,7 @@ class Status(enum.IntEnum):
 _MESSAGES = {
     Status.OK: "ok",
     Status.SINGULAR_MASS_MATRIX: "the mass matrix is singular or not positive definite",
-    Status.NONFINITE_STATE: "the state became NaN or infinite (the run diverged)",
+    Status.NONFINITE_STATE: "the state or its derivatives became NaN or infinite (the run diverged)",
     Status.NEWTON_FAILED: "the implicit step's Newton iteration did not converge",
     Status.UNKNOWN_METHOD: "the method is not compiled into this kernel",
     Status.SINGULAR_CONSTRAINTS: "the constraint Jacobian lost rank (a singular configuration)",

@@ -199,3 +199,29 @@ def test_a_fixed_parameter_cannot_be_given_at_run_time(chain_fixed_K):
 def test_a_method_not_compiled_in_is_rejected(chain_fixed_K):
     with pytest.raises(ValueError, match=r"'dopri5'.*compiled: rk4"):
         simulate(chain_fixed_K, CHAIN_X0, 1.0, 0.1, "dopri5")
+
+
+def _kernel(system, suffix, x, params, size):
+    """``lcg_<model>_<suffix>(t, x, p, out)`` -> (status, out)."""
+    from lagcodegen.simulate import parameter_vector
+
+    x = np.ascontiguousarray(x, dtype=np.float64)
+    p = np.ascontiguousarray(parameter_vector(system, params), dtype=np.float64)
+    out = np.zeros(size)
+    function = getattr(system.lib, f"{system.layout.prefix}_{suffix}")
+    status = function(0.0, system.ffi.from_buffer("double[]", x), system.ffi.from_buffer("double[]", p),
+                      system.ffi.from_buffer("double[]", out, require_writable=True))
+    return Status(status), out
+
+
+@pytest.mark.parametrize("suffix, size", [("rhs", 4), ("accel", 2), ("jacobian", 16)])
+def test_overflowing_derivatives_at_a_finite_state_are_not_ok(double_pendulum, suffix, size):
+    # m1 = m2 = 1e300, g = 1e300 at a finite state: F ~ m g sin(q) ~ 1e600 overflows to inf while
+    # M ~ 1e300 stays finite, so ud = inf / 1e300. The kernels used to return LCG_OK with inf in ud.
+    huge = {"m1": 1e300, "m2": 1e300, "g": 1e300}
+    status, out = _kernel(double_pendulum, suffix, [0.3, 0.1, 0.0, 0.0], huge, size)
+    assert not np.all(np.isfinite(out))  # the overflow really happens (IEEE arithmetic)
+    assert status == Status.NONFINITE_STATE
+    # the same kernel at ordinary values is OK and finite
+    status, out = _kernel(double_pendulum, suffix, [0.3, 0.1, 0.0, 0.0], None, size)
+    assert status == Status.OK and np.all(np.isfinite(out))
