@@ -4,6 +4,7 @@ from __future__ import annotations
 import argparse
 import math
 import os
+import sys
 import time
 from pathlib import Path
 
@@ -313,7 +314,7 @@ def print_sweep_summary(result, field: str, elapsed: float, compile_time: float,
 
 def cmd_sweep(args) -> int:
     from .heatmap import plot_heatmap
-    from .sweep import sweep
+    from .sweep import CHUNK_FAILED, NOT_RUN, sweep
 
     if bool(args.grid) == bool(args.table):
         raise UsageError("give the members either with --grid (repeatable) or with --table")
@@ -343,9 +344,16 @@ def cmd_sweep(args) -> int:
         if client is not None:
             client.close()
     print_sweep_summary(result, field, time.perf_counter() - start, compile_time, steps, args.method)
-    if not result.completed:
-        print(f"interrupted: {int((result.status == -1).sum())} of {result.n_members} members not run; "
-              "the finished ones are kept")
+    for error in result.errors:
+        print(f"chunk failed: members {error.start}..{error.stop - 1} ({error.stop - error.start} marked "
+              f"chunk_failed): {error.error}", file=sys.stderr)
+    not_run = int((result.status == NOT_RUN).sum())
+    if not_run:
+        print(f"interrupted: {not_run} of {result.n_members} members not run; the finished ones are kept")
+    if result.errors:
+        failed = int((result.status == CHUNK_FAILED).sum())
+        print(f"{failed} of {result.n_members} members lost in {len(result.errors)} failed chunk(s); "
+              "the other members are kept", file=sys.stderr)
     if args.out:
         save_sweep(args.out, result, system, eom, args, params, x0)
         print(f"wrote {args.out}")
@@ -353,6 +361,8 @@ def cmd_sweep(args) -> int:
         title = f"{eom.name}: {field} ({args.method}, h = {args.h:g}, t_end = {args.t_end:g})"
         plot_heatmap(result, field, title=title).savefig(args.heatmap, dpi=110)
         print(f"wrote {args.heatmap}")
+    if result.errors:
+        return EXIT_FAILED
     return EXIT_OK if result.completed else EXIT_INTERRUPTED
 
 

@@ -24,7 +24,7 @@ import sympy as sp
 
 from lagcodegen import catalog
 from lagcodegen.cli import main
-from lagcodegen.cli_args import EXIT_USAGE, parse_axis
+from lagcodegen.cli_args import EXIT_FAILED, EXIT_USAGE, parse_axis
 from lagcodegen.heatmap import first_crossing_time, plot_heatmap
 from lagcodegen.pipeline import compile_model
 from lagcodegen.simulate import Status, solve_reference
@@ -192,6 +192,26 @@ def test_sweep_table_and_failures(tmp_path, capsys):
                                                    Status.NONFINITE_STATE])
     assert np.all(np.isnan(data["blowup_time"][:2])) and np.all(data["blowup_time"][2:] < 1.0)
     assert_png(png)
+
+
+def test_sweep_reports_a_failed_chunk_and_exits_non_zero(tmp_path, capsys, monkeypatch):
+    """A chunk that raises (a lost worker, a bug) used to be summed up as an interruption: now the
+    command names the members and the error, counts them apart from members not run, and exits 1."""
+    import lagcodegen.sweep as sweep_module
+
+    def failing_call(job, xs, ps, out):
+        raise MemoryError("out of memory in chunk")
+
+    monkeypatch.setattr(sweep_module, "_call", failing_call)
+    table = tmp_path / "members.csv"
+    table.write_text("k\n1\n2\n")
+    code = main(["sweep", "stiff_chain", "--table", str(table), "--t-end", "0.01", "--h", "1e-3",
+                 "--x0", "x1=0.1,x2=0,x3=0"])
+    captured = capsys.readouterr()
+    assert code == EXIT_FAILED
+    assert "chunk failed: members 0..1 (2 marked chunk_failed): MemoryError: out of memory in chunk" in captured.err
+    assert "2 of 2 members lost in 1 failed chunk(s)" in captured.err
+    assert "chunk_failed 2" in captured.out and "not run" not in captured.out
 
 
 def test_sweep_state_variable_needs_no_x0_entry(tmp_path, capsys):
