@@ -86,11 +86,13 @@ class CSources:
 PRECISIONS = ("double", "float")
 STATUS_CODES = (
     ("LCG_OK", 0, "success"),
-    ("LCG_SINGULAR_MASS_MATRIX", 1, "a pivot of the LDL^T factorization of M was not positive"),
+    ("LCG_SINGULAR_MASS_MATRIX", 1, "a pivot of the LDL^T factorization of M was not positive "
+                                    "(or a step crossed a singular configuration)"),
     ("LCG_NONFINITE_STATE", 2, "the state or its derivatives became NaN or infinite"),
     ("LCG_NEWTON_FAILED", 3, "an implicit step's Newton iteration did not converge"),
     ("LCG_UNKNOWN_METHOD", 4, "the method number is not compiled into this kernel"),
-    ("LCG_SINGULAR_CONSTRAINTS", 5, "the constraint Jacobian lost rank (a singular configuration)"),
+    ("LCG_SINGULAR_CONSTRAINTS", 5, "the constraint Jacobian lost rank (a singular configuration, "
+                                    "or a step crossed one)"),
 )
 #: local names the generated code uses itself; user symbols are renamed around them
 _RESERVED = {"t", "x", "p", "out", "M", "F", "ud", "qd", "xdot", "B", "J", "c", "status", "work", "h",

@@ -48,11 +48,13 @@ class Status(enum.IntEnum):
 
 _MESSAGES = {
     Status.OK: "ok",
-    Status.SINGULAR_MASS_MATRIX: "the mass matrix is singular or not positive definite",
+    Status.SINGULAR_MASS_MATRIX: "the mass matrix is singular or not positive definite (or a step crossed a "
+                                 "singular configuration)",
     Status.NONFINITE_STATE: "the state or its derivatives became NaN or infinite (the run diverged)",
     Status.NEWTON_FAILED: "the implicit step's Newton iteration did not converge",
     Status.UNKNOWN_METHOD: "the method is not compiled into this kernel",
-    Status.SINGULAR_CONSTRAINTS: "the constraint Jacobian lost rank (a singular configuration)",
+    Status.SINGULAR_CONSTRAINTS: "the constraint Jacobian lost rank (a singular configuration, or a step "
+                                 "crossed one)",
 }
 
 
@@ -248,7 +250,11 @@ def simulate(system: CompiledSystem, x0, t_end: float, h: float, method: str = "
     -------
     Trajectory
         ``status`` says whether the run completed; a failed run keeps the samples before the
-        failure and also emits a RuntimeWarning naming the reason, time and step.
+        failure and also emits a RuntimeWarning naming the reason, time and step. A singular
+        status (``SINGULAR_MASS_MATRIX``, ``SINGULAR_CONSTRAINTS``) means the run landed on a
+        singular configuration (or a step crossed a singular configuration: a pivot of M or of
+        A M^-1 A^T that jumps 100x in one step or falls below 1e-8 of its value at t0, 1e-4 in
+        float, or a sign change of det(A_prev A^T)).
     """
     method = compiled_method(system, method)
     n_steps = step_count(t0, t_end, h)
