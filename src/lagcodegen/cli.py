@@ -109,24 +109,10 @@ def cmd_derive(args) -> int:
     return EXIT_OK
 
 
-def method_outputs(methods) -> list[str]:
-    """The outputs the integrators ``methods`` need.
-
-    TEMPORARY: the same rule as in `pipeline.compile_model` (rhs; jacobian for implicit methods;
-    momentum for symplectic Euler); to be replaced by the pipeline's own helper once it has one.
-    """
-    from .schemes import needs_jacobian
-
-    needed = ["rhs"] if methods else []
-    needed += ["jacobian"] if needs_jacobian(methods) else []
-    needed += ["momentum"] if "symplectic_euler" in methods else []
-    return needed
-
-
 def emit_request(args, eom) -> tuple[list, list, dict]:
     """(outputs, methods, fixed) of ``lagcodegen emit``, every name checked."""
     from .cse import DEFAULT_OUTPUTS, OUTPUT_KERNELS
-    from .schemes import SCHEMES
+    from .schemes import SCHEMES, required_outputs
 
     methods = parse_names(args.methods, "--methods", tuple(SCHEMES))
     if args.outputs is not None:
@@ -135,7 +121,7 @@ def emit_request(args, eom) -> tuple[list, list, dict]:
         outputs = [o for o in DEFAULT_OUTPUTS if not (o == "energy" and eom.energy is None)
                    and not (o == "jacobian" and eom.m)]
         outputs += ["constraints", "multipliers"] if eom.m else []
-    outputs += [o for o in method_outputs(methods) if o not in outputs]
+    outputs += [o for o in required_outputs(methods) if o not in outputs]
     fixed = parse_assignments(args.fixed, "--fixed")
     parameters = [p.name for p in eom.parameters]
     for name in fixed:

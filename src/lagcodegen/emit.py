@@ -72,7 +72,8 @@ class KernelLayout:
 
 @dataclass(frozen=True)
 class CSources:
-    """Generated C text for one model: ``header`` (``header_name``), ``source`` and the cffi cdef."""
+    """Generated C text for one model: ``header`` (``header_name``), ``source`` and the cffi cdef;
+    ``source_key`` is the digest of the layout and function bodies printed in their comments."""
 
     layout: KernelLayout
     header_name: str
@@ -80,6 +81,7 @@ class CSources:
     source_name: str
     source: str
     cdef: str
+    source_key: str
 
 
 
@@ -101,11 +103,16 @@ _RESERVED = {"t", "x", "p", "out", "M", "F", "ud", "qd", "xdot", "B", "J", "c", 
 
 
 def template_dir() -> Path:
-    """Where the Jinja2 templates live: inside the installed package, else the source tree."""
-    installed = Path(__file__).resolve().parent / "templates"
-    if installed.is_dir():
-        return installed
-    return Path(__file__).resolve().parents[2] / "templates"
+    """Where the Jinja2 templates live: inside the installed package (the wheel puts them at
+    ``lagcodegen/templates``), else at the top of the source tree that holds the package."""
+    import lagcodegen
+
+    package = Path(lagcodegen.__file__).resolve().parent
+    for candidate in (package / "templates", package.parent.parent / "templates"):
+        if (candidate / "model.c.j2").is_file():
+            return candidate
+    raise FileNotFoundError(f"lagcodegen's templates (model.c.j2, ...) are neither in {package / 'templates'} "
+                            f"nor in {package.parent.parent / 'templates'}: reinstall the package")
 
 
 @functools.lru_cache(maxsize=1)
@@ -232,7 +239,7 @@ def render_sources(system: ReducedSystem, precision: str = "double", model_name:
     source = env.get_template("model.c.j2").render(context, template="model.c.j2")
     cdef = env.get_template("model.cdef.j2").render(context)
     return CSources(layout=layout, header_name=header_name, header=header, source_name=source_name,
-                    source=source, cdef=cdef)
+                    source=source, cdef=cdef, source_key=context["key"])
 
 
 class _KernelPrinter(CPrinter):

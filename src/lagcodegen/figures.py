@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Mapping, Sequence
 
 import numpy as np
 
-from .schemes import KIND_IMPLICIT, SCHEMES, scheme_kind
+from .schemes import SCHEMES
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -42,8 +42,8 @@ def _style(method: str, index: int) -> dict:
     style = {"marker": _MARKERS[index % len(_MARKERS)], "markersize": 5}
     if method.startswith("scipy:"):
         return style | {"linestyle": "--", "color": _GREYS[index % len(_GREYS)], "markerfacecolor": "none"}
-    kind = scheme_kind(SCHEMES[method]) if method in SCHEMES else None
-    return style | {"linestyle": "-." if kind == KIND_IMPLICIT else "-", "color": _COLORS[index % len(_COLORS)]}
+    implicit = method in SCHEMES and SCHEMES[method].implicit
+    return style | {"linestyle": "-." if implicit else "-", "color": _COLORS[index % len(_COLORS)]}
 
 
 def plot_work_precision(records: Sequence[WorkRecord], title: str, *, max_error: float = 1e2,

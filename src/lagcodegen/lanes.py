@@ -61,15 +61,14 @@ class LanePrinter(CPrinter):
 
 def lanes_apply(system, methods) -> bool:
     """True when the lane kernel can serve this system: unconstrained, rhs, an explicit method."""
-    from .schemes import KIND_EXPLICIT, get_scheme, scheme_kind
+    from .schemes import get_scheme
 
-    explicit = [m for m in methods if scheme_kind(get_scheme(m)) == KIND_EXPLICIT]
-    return bool(explicit) and not system.n_constraints and "rhs" in system.outputs
+    return any(get_scheme(m).lane_capable for m in methods) and not system.n_constraints and "rhs" in system.outputs
 
 
 def lane_context(system, names, real: str, methods: list, lanes: int, trig: str = "fast") -> dict:
     """Template context of ``templates/lanes.c.j2``; ``{"has_lanes": False}`` when lanes is 0."""
-    from .schemes import KIND_EXPLICIT, get_scheme, scheme_kind
+    from .schemes import get_scheme
 
     if not lanes:
         return {"has_lanes": False}
@@ -84,7 +83,7 @@ def lane_context(system, names, real: str, methods: list, lanes: int, trig: str 
     steppers = []
     for number, name in enumerate(dict.fromkeys(methods)):
         scheme = get_scheme(name)
-        if scheme_kind(scheme) == KIND_EXPLICIT:
+        if scheme.lane_capable:
             steppers.append({"name": scheme.name, "id": number, "title": scheme.title or scheme.name,
                              "lines": _stage_lines(scheme, prefix, 2 * n * lanes)})
     has_energy = "energy" in system.outputs

@@ -34,7 +34,7 @@ from .emit import CSources, KernelLayout, render_sources, template_dir
 from .lanes import DEFAULT_LANES
 from .printer import DEFAULT_TRIG
 from .model import Model
-from .schemes import DEFAULT_METHODS, needs_jacobian
+from .schemes import DEFAULT_METHODS, required_outputs
 
 SIMULATION_OUTPUTS = ("rhs", "energy", "points", "jacobian")
 
@@ -82,18 +82,15 @@ def compile_model(model: Model | EquationsOfMotion, *, outputs=None, fixed: Mapp
     if defaulted and momentum_obstacle(eom) is not None:
         methods = tuple(m for m in methods if m != "symplectic_euler")  # not applicable: see momentum_obstacle
     if defaulted and eom.m:
-        methods = tuple(m for m in methods if not needs_jacobian([m]))  # no constrained Jacobian yet
+        methods = tuple(m for m in methods if "jacobian" not in required_outputs([m]))  # no constrained Jacobian yet
     if outputs is None:
         outputs = [o for o in SIMULATION_OUTPUTS
                    if not (o == "energy" and eom.energy is None)
-                   and not (o == "jacobian" and (not needs_jacobian(methods) or eom.m))]
+                   and not (o == "jacobian" and ("jacobian" not in required_outputs(methods) or eom.m))]
         outputs += ["constraints", "multipliers"] if eom.m else []
 
     outputs = list(outputs)
-    needed = ["rhs"] if methods else []  # the integrators' own needs come with them
-    needed += ["jacobian"] if needs_jacobian(methods) else []
-    needed += ["momentum"] if "symplectic_euler" in methods else []
-    outputs += [o for o in needed if o not in outputs]
+    outputs += [o for o in required_outputs(methods) if o not in outputs]  # the integrators' needs
     fixed = _checked_fixed(eom, fixed)
     key = _sources_key(eom, outputs, fixed, methods, precision, (trig, lanes, lane_trig))
     entry = cache.cache_dir(cache_dir) / "sources" / f"{key[:32]}.json"
@@ -178,11 +175,22 @@ def _sources_key(eom: EquationsOfMotion, outputs, fixed, methods, precision,
 
 @functools.lru_cache(maxsize=1)
 def _package_digest() -> str:
-    """sha256 over this package's modules: an edited emitter must not be served stale sources
-    from the cache under an unchanged version number."""
+    """sha256 over every module of the package, subpackages included, and the templates: an
+    edited emitter or template must not be served stale sources from the cache under an
+    unchanged version number."""
+    from .emit import template_dir
+
+    return code_digest(Path(__file__).resolve().parent, template_dir())
+
+
+def code_digest(package: Path, templates: Path) -> str:
+    """sha256 over the ``.py`` files under ``package`` (recursively, by relative path) and the
+    ``.j2`` files in ``templates``."""
     digest = hashlib.sha256()
-    for path in sorted(Path(__file__).parent.glob("*.py")):
-        digest.update(path.name.encode() + b"\0" + path.read_bytes())
+    for path in sorted(package.rglob("*.py")):
+        digest.update(path.relative_to(package).as_posix().encode() + b"\0" + path.read_bytes())
+    for path in sorted(templates.glob("*.j2")):
+        digest.update(b"templates/" + path.name.encode() + b"\0" + path.read_bytes())
     return digest.hexdigest()
 
 

@@ -16,11 +16,13 @@ from .catalog import EXAMPLES
 from .cse import momentum_obstacle, reduce_expressions
 from .derive import EquationsOfMotion, derive_equations
 from .emit import _environment, comment_text, render_sources
+from .schemes import required_outputs
 
 #: time of the C tests' sample state (rheonomic models depend on it)
 SAMPLE_TIME = 0.25
 TOLERANCE = {"double": "1e-12", "float": "2e-4"}
-EXAMPLE_OUTPUTS = ("mass_matrix", "forcing", "accel", "rhs", "energy", "points", "jacobian", "momentum")
+#: outputs of the committed examples besides those their methods need (`schemes.required_outputs`)
+EXAMPLE_OUTPUTS = ("mass_matrix", "forcing", "accel", "rhs", "energy", "points")
 #: steppers compiled into the committed examples (embedded users get these step functions)
 EXAMPLE_METHODS = ("rk4", "symplectic_euler", "implicit_midpoint")
 
@@ -59,12 +61,14 @@ def sample_state(eom: EquationsOfMotion) -> SampleState:
 def example_files(name: str) -> dict:
     """File name -> text for one catalog example (double and float kernels and their C tests)."""
     eom = derive_equations(EXAMPLES[name]())
-    applicable = momentum_obstacle(eom) is None
-    outputs = EXAMPLE_OUTPUTS if applicable else tuple(o for o in EXAMPLE_OUTPUTS if o != "momentum")
-    methods = EXAMPLE_METHODS if applicable else tuple(m for m in EXAMPLE_METHODS if m != "symplectic_euler")
+    methods = EXAMPLE_METHODS
+    if momentum_obstacle(eom) is not None:
+        methods = tuple(m for m in methods if m != "symplectic_euler")
     if eom.m:  # constrained: explicit methods, multipliers and projection instead of the Jacobian
-        outputs = tuple(o for o in outputs if o != "jacobian") + ("constraints", "multipliers")
         methods = tuple(m for m in methods if m == "rk4")
+    outputs = EXAMPLE_OUTPUTS + tuple(o for o in required_outputs(methods) if o not in EXAMPLE_OUTPUTS)
+    if eom.m:
+        outputs += ("constraints", "multipliers")
     system = reduce_expressions(eom, outputs)
     sample = sample_state(eom)
     files = {}
@@ -85,7 +89,7 @@ def _c_test(sources, sample: SampleState, precision: str) -> str:
     literal = (lambda v: f"{float(v)!r}F") if precision == "float" else (lambda v: f"{float(v)!r}")
     context = {
         "version": _version(), "sympy_version": sp.__version__, "model": comment_text(layout.model),
-        "key": sources.source.split("source key: ")[1].split(".")[0], "prefix": layout.prefix,
+        "key": sources.source_key, "prefix": layout.prefix,
         "header_name": sources.header_name, "real": precision, "n": layout.n,
         "n_state": 2 * layout.n, "n_matrix": layout.n * layout.n, "p_size": max(1, len(sample.p)),
         "state_values": ", ".join(map(literal, sample.x)),

@@ -11,12 +11,39 @@ T = 1/2 u^T M(q) u (`cse.momentum_obstacle` says when a model does not qualify).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Protocol
 
-from .tableaux import TABLEAUX, ButcherTableau
+from .tableaux import TABLEAUX
 
+#: the C steppers (`stepper_context` renders one per kind); `Scheme.stepper` names one
 KIND_EXPLICIT = "explicit"
 KIND_IMPLICIT = "implicit"
 KIND_SYMPLECTIC_EULER = "symplectic_euler"
+#: canonical order of the outputs schemes need (the sources key depends on the order)
+_OUTPUT_ORDER = ("rhs", "jacobian", "momentum")
+
+
+class Scheme(Protocol):
+    """What every integration scheme declares; a Runge-Kutta method is a `ButcherTableau`, a
+    non-RK scheme a small class like `SymplecticEuler`. Nothing else switches on the scheme."""
+
+    name: str
+    order: int
+    title: str
+
+    @property
+    def stepper(self) -> str: ...       # KIND_*: which C stepper runs it
+
+    @property
+    def outputs(self) -> tuple: ...     # kernel outputs the stepper calls
+
+    @property
+    def lane_capable(self) -> bool: ...  # the lane-group sweep kernel can run it
+
+    @property
+    def implicit(self) -> bool: ...     # solves for its stages (Newton)
+
+    def imag_stability_limit(self) -> float: ...
 
 
 @dataclass(frozen=True)
@@ -30,21 +57,16 @@ class SymplecticEuler:
     order: int = 1
     title: str = "symplectic (semi-implicit) Euler, momentum form"
 
-    @property
-    def kind(self) -> str:
-        return KIND_SYMPLECTIC_EULER
+    stepper: str = KIND_SYMPLECTIC_EULER
+    outputs: tuple = ("rhs", "momentum")  # rhs for the stability pre-check and the first sample
+    lane_capable: bool = False
+    implicit: bool = False  # its momentum solve is linear in v for quadratic T: no Newton
 
     def imag_stability_limit(self) -> float:
         return 2.0
 
 
 SYMPLECTIC_EULER = SymplecticEuler()
-
-
-def scheme_kind(scheme) -> str:
-    if isinstance(scheme, SymplecticEuler):
-        return KIND_SYMPLECTIC_EULER
-    return KIND_EXPLICIT if scheme.explicit else KIND_IMPLICIT
 
 
 SCHEMES: dict = {**TABLEAUX, SYMPLECTIC_EULER.name: SYMPLECTIC_EULER}
@@ -60,9 +82,8 @@ def get_scheme(name: str):
     return SCHEMES[key]
 
 
-def needs_jacobian(methods) -> bool:
-    return any(scheme_kind(get_scheme(m)) == KIND_IMPLICIT for m in methods)
-
-
-def is_tableau(scheme) -> bool:
-    return isinstance(scheme, ButcherTableau)
+def required_outputs(methods) -> tuple:
+    """The kernel outputs the integrators ``methods`` need, in a fixed order: the one
+    method/output policy of the pipeline, the command line and tools/regenerate.py."""
+    needed = {output for method in methods for output in get_scheme(method).outputs}
+    return tuple(sorted(needed, key=lambda o: (_OUTPUT_ORDER.index(o) if o in _OUTPUT_ORDER else len(_OUTPUT_ORDER), o)))

@@ -19,7 +19,7 @@ from .build import CompiledSystem
 from .run_arguments import (check_output_size, flag, method_name, output_bytes, positive_int,  # noqa: F401
                             real_number, real_values, step_count, stride_within)
 from .drift import DRIFT_TOLERANCE, ConstraintDriftWarning, resolve_drift_tolerance, warn_if_drifted  # noqa: F401
-from .schemes import KIND_EXPLICIT, KIND_SYMPLECTIC_EULER, get_scheme, scheme_kind
+from .schemes import KIND_SYMPLECTIC_EULER, get_scheme
 
 
 class Status(enum.IntEnum):
@@ -374,8 +374,7 @@ def warn_if_unstable(system: CompiledSystem, x, p, h: float, method: str, t: flo
     if f"{system.layout.prefix}_jacobian" not in system.layout.functions:
         return False
     scheme = get_scheme(method)
-    kind = scheme_kind(scheme)
-    if kind not in (KIND_EXPLICIT, KIND_SYMPLECTIC_EULER):
+    if scheme.implicit:  # A-stable or close to it; the pre-check is for explicit steps
         return False
     try:
         J = jacobian(system, x, p, t)
@@ -394,7 +393,7 @@ def warn_if_unstable(system: CompiledSystem, x, p, h: float, method: str, t: flo
     if settled.size == 0:
         return False
     w = float(np.max(np.abs(settled)))
-    if kind == KIND_SYMPLECTIC_EULER:
+    if scheme.stepper == KIND_SYMPLECTIC_EULER:
         unstable = h * w >= scheme.imag_stability_limit()
         limit = f"h*w < {scheme.imag_stability_limit():g}"
     else:

@@ -38,7 +38,7 @@ def hot_dynamics(system) -> bool:
 
 def stepper_context(system, names, real: str, methods: list) -> dict:
     """Template context of the integrators: coefficient tables, step functions, the driver."""
-    from .schemes import KIND_EXPLICIT, KIND_IMPLICIT, get_scheme, scheme_kind
+    from .schemes import KIND_EXPLICIT, KIND_IMPLICIT, get_scheme
 
     n, prefix = len(system.q), names.prefix
     N, G = 2 * n, gauge_size(system)
@@ -60,9 +60,10 @@ def stepper_context(system, names, real: str, methods: list) -> dict:
         raise EmitError("integrators need the 'rhs' output; add it to outputs")
     for number, name in enumerate(dict.fromkeys(methods)):
         scheme = get_scheme(name)
-        kind = scheme_kind(scheme)
-        if kind == KIND_IMPLICIT and "jacobian" not in system.outputs:
-            raise EmitError(f"method {name!r} is implicit and needs the 'jacobian' output; add it to outputs")
+        kind = scheme.stepper
+        for output in scheme.outputs:
+            if output not in system.outputs:
+                raise EmitError(f"method {name!r} needs the {output!r} output; add it to outputs")
         # part (LCG_BUILD_PART): explicit steppers compile beside the drivers, the others apart
         record = {"name": scheme.name, "id": number, "title": scheme.title or scheme.name, "order": scheme.order,
                   "part": 1 if kind == KIND_EXPLICIT else 2}
@@ -86,8 +87,6 @@ def stepper_context(system, names, real: str, methods: list) -> dict:
             record["call_in_driver"] = f"{prefix}_step_{scheme.name}(&step_t, x, p, h, scratch)"
             context["has_implicit"] = True
         else:
-            if "momentum" not in system.outputs:
-                raise EmitError(f"method {name!r} needs the 'momentum' output; add it to outputs")
             record["work"] = 3 * n * n + 5 * n + N + G
             tail = record["gauge_offset"] = record["work"] - G
             record["call"] = f"{prefix}_symplectic_euler_step(*t, x, p, h, work, work + {tail})"

@@ -245,13 +245,13 @@ KERNELS = ("auto", "lanes", "scalar")
 
 def _lanes(system: CompiledSystem, method: str, project: bool, kernel: str) -> int:
     """Lanes per group of the lane kernel for this sweep, or 0 for the scalar kernel."""
-    from .schemes import KIND_EXPLICIT, get_scheme, scheme_kind
+    from .schemes import get_scheme
 
     if kernel not in KERNELS:
         raise ValueError(f"kernel must be one of {KERNELS}, got {kernel!r}")
     layout = system.layout
     reason = None
-    if scheme_kind(get_scheme(method)) != KIND_EXPLICIT:
+    if not get_scheme(method).lane_capable:
         reason = f"method {method!r} is not an explicit Runge-Kutta method"
     elif project:
         reason = "projection onto the constraints runs on the scalar kernel only"

@@ -127,6 +127,26 @@ class ButcherTableau:
         """True if ``a`` is strictly lower triangular (each stage uses earlier ones only)."""
         return all(self.a[i][j] == 0 for i in range(self.stages) for j in range(i, self.stages))
 
+    # -- the scheme protocol (`schemes.Scheme`) ---------------------------------------------
+    @property
+    def stepper(self) -> str:
+        """The C stepper that runs this tableau: ``"explicit"`` or ``"implicit"`` (Newton)."""
+        return "explicit" if self.explicit else "implicit"
+
+    @property
+    def outputs(self) -> tuple:
+        """Kernel outputs the stepper needs: the rhs, and the Jacobian for Newton's iteration."""
+        return ("rhs",) if self.explicit else ("rhs", "jacobian")
+
+    @property
+    def lane_capable(self) -> bool:
+        """Whether the lane-group sweep kernel can run it (explicit stages only)."""
+        return self.explicit
+
+    @property
+    def implicit(self) -> bool:
+        return not self.explicit
+
     @property
     def diagonally_implicit(self) -> bool:
         """True for DIRK methods: ``a`` lower triangular with a nonzero diagonal entry."""

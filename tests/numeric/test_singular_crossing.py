@@ -34,14 +34,14 @@ from scipy.integrate import solve_ivp
 from lagcodegen import catalog, derive_equations
 from lagcodegen.model import Model
 from lagcodegen.pipeline import compile_model
-from lagcodegen.schemes import KIND_EXPLICIT, SCHEMES, get_scheme, scheme_kind
+from lagcodegen.schemes import KIND_EXPLICIT, SCHEMES, get_scheme
 from lagcodegen.simulate import Status, make_rhs, simulate
 from lagcodegen.sweep import sweep
 
 pytestmark = pytest.mark.compiler
 
 ALL_METHODS = tuple(sorted(SCHEMES))
-EXPLICIT = tuple(m for m in ALL_METHODS if scheme_kind(get_scheme(m)) == KIND_EXPLICIT)
+EXPLICIT = tuple(m for m in ALL_METHODS if get_scheme(m).stepper == KIND_EXPLICIT)
 
 
 def quiet_simulate(system, x0, t_end, h, method, **kwargs):

@@ -12,6 +12,7 @@
 from __future__ import annotations
 
 import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -99,16 +100,44 @@ def test_sources_key_follows_the_package_code(monkeypatch):
     assert pipeline._sources_key(*args) != key
 
 
-def test_package_digest_covers_the_emitter_modules():
-    import hashlib
-    from pathlib import Path
+def test_code_digest_covers_every_module_and_template(tmp_path):
+    """A module edited anywhere in the package, subpackages included, or a template edited,
+    changes the digest behind the sources key (else the cache would serve stale C after a move
+    into subpackages); bytecode and other files do not."""
+    package, templates = tmp_path / "pkg", tmp_path / "templates"
+    (package / "codegen").mkdir(parents=True)
+    templates.mkdir()
+    (package / "__init__.py").write_text("")
+    (package / "codegen" / "render.py").write_text("X = 1\n")
+    (templates / "model.c.j2").write_text("/* {{ model }} */\n")
+    before = pipeline.code_digest(package, templates)
+    (package / "codegen" / "cached.pyc").write_bytes(b"\0")
+    (templates / "notes.txt").write_text("not a template")
+    assert pipeline.code_digest(package, templates) == before
+    (package / "codegen" / "render.py").write_text("X = 2\n")
+    after_module = pipeline.code_digest(package, templates)
+    assert after_module != before
+    (templates / "model.c.j2").write_text("/* {{ model }} edited */\n")
+    assert pipeline.code_digest(package, templates) not in (before, after_module)
+    (package / "codegen" / "render.py").rename(package / "render.py")  # a move alone changes it too
+    assert pipeline.code_digest(package, templates) != after_module
 
-    package = Path(pipeline.__file__).parent
-    digest = hashlib.sha256()
-    for path in sorted(package.glob("*.py")):
-        digest.update(path.name.encode() + b"\0" + path.read_bytes())
-    assert pipeline._package_digest() == digest.hexdigest()
-    assert {"stepper_context.py", "emit.py", "cse.py", "printer.py"} <= {p.name for p in package.glob("*.py")}
+
+def test_template_dir_is_found_from_the_package_and_missing_templates_are_named(monkeypatch, tmp_path):
+    import lagcodegen
+    from lagcodegen.emit import template_dir
+
+    assert (template_dir() / "model.c.j2").is_file()
+    monkeypatch.setattr(lagcodegen, "__file__", str(tmp_path / "src" / "lagcodegen" / "__init__.py"))
+    with pytest.raises(FileNotFoundError, match="model.c.j2"):
+        template_dir()
+
+
+def test_package_digest_reads_the_installed_package():
+    from lagcodegen.emit import template_dir
+
+    assert pipeline._package_digest() == pipeline.code_digest(Path(pipeline.__file__).resolve().parent,
+                                                              template_dir())
 
 
 @pytest.mark.compiler

@@ -33,7 +33,7 @@ from lagcodegen.simulate import StabilityWarning, Status, simulate
 from lagcodegen.tableaux import Z
 
 EXPLICIT_RK = tuple(m for m in schemes.DEFAULT_METHODS
-                    if schemes.scheme_kind(schemes.get_scheme(m)) == schemes.KIND_EXPLICIT)
+                    if schemes.get_scheme(m).stepper == schemes.KIND_EXPLICIT)
 L_STABLE = ("backward_euler", "sdirk2", "radau_iia3")
 RK4_IMAG_LIMIT = 2 * math.sqrt(2)  # |R(iy)| = 1 at y = 2 sqrt(2) for RK4 (HW II, Sec. IV.2)
 
