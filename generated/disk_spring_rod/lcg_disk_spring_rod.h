@@ -52,10 +52,10 @@
 #ifndef LCG_STATUS_CODES
 #define LCG_STATUS_CODES
 #define LCG_OK 0 /* success */
-#define LCG_SINGULAR_MASS_MATRIX 1 /* a pivot of the LDL^T factorization of M was not positive (or a step crossed a singular configuration) */
-#define LCG_NONFINITE_STATE 2 /* the state or its derivatives became NaN or infinite */
-#define LCG_NEWTON_FAILED 3 /* an implicit step's Newton iteration did not converge */
-#define LCG_UNKNOWN_METHOD 4 /* the method number is not compiled into this kernel */
+#define LCG_SINGULAR_MASS_MATRIX 1 /* the mass matrix is singular or not positive definite (or a step crossed a singular configuration) */
+#define LCG_NONFINITE_STATE 2 /* the state or its derivatives became NaN or infinite (the run diverged) */
+#define LCG_NEWTON_FAILED 3 /* the implicit step's Newton iteration did not converge */
+#define LCG_UNKNOWN_METHOD 4 /* the method is not compiled into this kernel */
 #define LCG_SINGULAR_CONSTRAINTS 5 /* the constraint Jacobian lost rank (a singular configuration, or a step crossed one) */
 #endif
 

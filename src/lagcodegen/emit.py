@@ -15,6 +15,7 @@ import sympy as sp
 from .csyntax import EmitError, comment_text, literal, record
 from .cse import OUTPUT_KERNELS, ReducedKernel, ReducedSystem
 from .lanes import lane_context
+from .status import STATUS_TABLE
 from .ldlt import ldlt_factor_lines, ldlt_substitution_lines
 from .model import TIME
 from .printer import DEFAULT_TRIG, TRIG_MODES, CPrinter, mangle
@@ -86,16 +87,6 @@ class CSources:
 
 
 PRECISIONS = ("double", "float")
-STATUS_CODES = (
-    ("LCG_OK", 0, "success"),
-    ("LCG_SINGULAR_MASS_MATRIX", 1, "a pivot of the LDL^T factorization of M was not positive "
-                                    "(or a step crossed a singular configuration)"),
-    ("LCG_NONFINITE_STATE", 2, "the state or its derivatives became NaN or infinite"),
-    ("LCG_NEWTON_FAILED", 3, "an implicit step's Newton iteration did not converge"),
-    ("LCG_UNKNOWN_METHOD", 4, "the method number is not compiled into this kernel"),
-    ("LCG_SINGULAR_CONSTRAINTS", 5, "the constraint Jacobian lost rank (a singular configuration, "
-                                    "or a step crossed one)"),
-)
 #: local names the generated code uses itself; user symbols are renamed around them
 _RESERVED = {"t", "x", "p", "out", "M", "F", "ud", "qd", "xdot", "B", "J", "c", "status", "work", "h",
              "i", "j", "k", "m", "s", "method", "stride", "n_steps", "steps_done", "A", "C", "Y", "z",
@@ -583,7 +574,7 @@ def _context(system: ReducedSystem, names: _Names, layout: KernelLayout, functio
         "n": n, "n_state": 2 * n, "n_params": len(param_rows), "n_points": len(point_rows),
         "state_rows": state_rows, "param_rows": param_rows, "fixed_rows": fixed_rows,
         "point_rows": point_rows, "has_fixed": bool(fixed_rows),
-        "status_codes": [{"name": c, "value": v, "doc": d} for c, v, d in STATUS_CODES],
+        "status_codes": [{"name": row.c_name, "value": row.code, "doc": row.message} for row in STATUS_TABLE],
         "prototypes": [f for f in functions if not f["static"]], "functions": functions,
         "has_dynamics": any(f" {names.prefix}_dynamics" in f["decl"] for f in functions),
         "has_hot": any(f["hot"] for f in functions),

@@ -5,7 +5,6 @@ right-hand side, for measuring the error of the fixed-step methods.
 """
 from __future__ import annotations
 
-import enum
 import math
 import numbers
 import warnings
@@ -20,42 +19,7 @@ from .run_arguments import (check_output_size, flag, method_name, output_bytes, 
                             real_number, real_values, step_count, stride_within)
 from .drift import DRIFT_TOLERANCE, ConstraintDriftWarning, resolve_drift_tolerance, warn_if_drifted  # noqa: F401
 from .schemes import KIND_SYMPLECTIC_EULER, get_scheme
-
-
-class Status(enum.IntEnum):
-    """Status codes of the generated C (``LCG_*`` in the header)."""
-
-    OK = 0
-    SINGULAR_MASS_MATRIX = 1
-    NONFINITE_STATE = 2
-    NEWTON_FAILED = 3
-    UNKNOWN_METHOD = 4
-    SINGULAR_CONSTRAINTS = 5
-
-    @property
-    def message(self) -> str:
-        return _MESSAGES[self]
-
-    # IntEnum prints its value ("0"); print the name, and keep numeric format specs numeric
-    def __str__(self) -> str:
-        return self.name
-
-    def __format__(self, spec: str) -> str:
-        if spec and spec[-1] in "bcdeEfFgGnoxX%":
-            return format(int(self), spec)
-        return format(self.name, spec)
-
-
-_MESSAGES = {
-    Status.OK: "ok",
-    Status.SINGULAR_MASS_MATRIX: "the mass matrix is singular or not positive definite (or a step crossed a "
-                                 "singular configuration)",
-    Status.NONFINITE_STATE: "the state or its derivatives became NaN or infinite (the run diverged)",
-    Status.NEWTON_FAILED: "the implicit step's Newton iteration did not converge",
-    Status.UNKNOWN_METHOD: "the method is not compiled into this kernel",
-    Status.SINGULAR_CONSTRAINTS: "the constraint Jacobian lost rank (a singular configuration, or a step "
-                                 "crossed one)",
-}
+from .status import Status
 
 
 class SimulationError(RuntimeError):

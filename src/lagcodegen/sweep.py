@@ -29,16 +29,11 @@ import numpy as np
 
 from .build import CompiledSystem
 from .run_arguments import check_memory, check_output_size, flag, output_bytes, positive_int, step_count, stride_within
-from .simulate import Status, _dtype, _pointer, _work_size, compiled_method
+from .simulate import _dtype, _pointer, _work_size, compiled_method
+from .status import CHUNK_FAILED, NOT_RUN, SWEEP_STATUS_NAMES, Status  # noqa: F401 (re-exported)
 from .sweep_members import (cartesian_members, cartesian_product, column_values, grid_axes,  # noqa: F401
                             member_arrays, table_members)
 
-#: status of members a sweep did not reach (interrupted)
-NOT_RUN = -1
-#: status of members whose chunk raised (a Dask worker died, say); `SweepResult.errors` says why
-CHUNK_FAILED = -2
-#: names of the sweep-only status codes, next to `Status`' own
-SWEEP_STATUS_NAMES = {CHUNK_FAILED: "chunk_failed", NOT_RUN: "not_run"}
 
 
 class SweepWarning(RuntimeWarning):
