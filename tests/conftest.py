@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import os
 import shutil
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -27,13 +28,15 @@ pytest_plugins = ("pytester",)
 #: every random number in the tests derives from this seed
 SEED = 20240611
 REPO_ROOT = Path(__file__).resolve().parents[1]
+#: tools/ holds maintenance scripts the tests import (regenerate.py); they are not in the package
+sys.path.insert(0, str(REPO_ROOT / "tools"))
 #: every output the pipeline can generate (kernel tests compare all of them)
 ALL_OUTPUTS = ("mass_matrix", "forcing", "accel", "rhs", "energy", "points", "jacobian")
 
 
 def pytest_addoption(parser):
     parser.addoption("--update-golden", action="store_true", default=False,
-                     help="rewrite generated/ (lagcodegen.regenerate.write_generated) instead of "
+                     help="rewrite generated/ (tools/regenerate.py, write_generated) instead of "
                           "failing when the regenerated C differs from it")
 
 

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import runpy
 import sys
 import textwrap
 import time
@@ -32,30 +31,9 @@ from .cli_args import (
     join_negative_numbers,
     parse_assignments,
     parse_names,
+    load_model,
 )
 from .cli_runs import add_run_commands
-
-
-def load_model(spec: str):
-    """A catalog example by name, or the ``model`` / ``build_model()`` of a Python file."""
-    from .catalog import EXAMPLES
-    from .model import Model
-
-    if spec in EXAMPLES:
-        return EXAMPLES[spec]()
-    path = Path(spec)
-    if not spec.strip() or not path.is_file():
-        raise UsageError(f"model {spec!r} is neither an example ({', '.join(EXAMPLES)}) nor a file")
-    try:
-        namespace = runpy.run_path(str(path))
-        model = namespace.get("model")
-        if model is None and callable(namespace.get("build_model")):
-            model = namespace["build_model"]()
-    except Exception as error:  # the user's own code, whatever it raises: name the file and the error
-        raise UsageError(f"model file {path} failed: {type(error).__name__}: {error}") from error
-    if not isinstance(model, Model):
-        raise UsageError(f"model file {path} must define `model` (a lagcodegen.Model) or `build_model()`")
-    return model
 
 
 def describe_example(name: str, builder, width: int = 88) -> str:

@@ -11,6 +11,8 @@ from __future__ import annotations
 import argparse
 import math
 import re
+import runpy
+from pathlib import Path
 
 #: exit codes of every subcommand
 EXIT_OK = 0
@@ -277,3 +279,25 @@ def add_run_arguments(parser) -> None:
     parser.add_argument("--project", action="store_true",
                         help="models with holonomic constraints: project the state back onto them after every "
                              "step (Baumgarte instead: --param baumgarte_alpha=10,baumgarte_beta=10)")
+
+
+def load_model(spec: str):
+    """A catalog example by name, or the ``model`` / ``build_model()`` of a Python file."""
+    from .catalog import EXAMPLES
+    from .model import Model
+
+    if spec in EXAMPLES:
+        return EXAMPLES[spec]()
+    path = Path(spec)
+    if not spec.strip() or not path.is_file():
+        raise UsageError(f"model {spec!r} is neither an example ({', '.join(EXAMPLES)}) nor a file")
+    try:
+        namespace = runpy.run_path(str(path))
+        model = namespace.get("model")
+        if model is None and callable(namespace.get("build_model")):
+            model = namespace["build_model"]()
+    except Exception as error:  # the user's own code, whatever it raises: name the file and the error
+        raise UsageError(f"model file {path} failed: {type(error).__name__}: {error}") from error
+    if not isinstance(model, Model):
+        raise UsageError(f"model file {path} must define `model` (a lagcodegen.Model) or `build_model()`")
+    return model

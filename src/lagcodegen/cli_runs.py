@@ -17,6 +17,7 @@ from .cli_args import (
     RunFailed,
     UsageError,
     add_run_arguments,
+    load_model,
     parse_assignments,
     parse_grid,
     positive_int,
@@ -118,7 +119,6 @@ def check_output_file(path: str | None, option: str) -> None:
 
 
 def derive_equations_of(spec: str):
-    from .cli import load_model  # here, not at the top: cli imports this module
     from .derive import derive_equations
 
     return derive_equations(load_model(spec))

@@ -34,7 +34,7 @@ import scipy.optimize
 import sympy as sp
 
 from .derive import EquationsOfMotion
-from .statics import _point, resolve_values, substitute_values
+from .statics import coordinate_point, resolve_values, substitute_values
 
 MAX_ITERATIONS = 50   # Gauss-Newton steps per start (quadratic convergence needs ~5)
 RETRIES = 3           # perturbed restarts after a stall
@@ -96,7 +96,7 @@ def constraint_residuals(eom: EquationsOfMotion, q: Any, u: Any, values: Mapping
     q, u: sequences (n,) or mappings naming every coordinate (and speed; missing speeds are 0).
     """
     phi, A, phi_t = _constraint_functions(eom, values, t)
-    qv = np.array(_point(eom, q), dtype=float)
+    qv = np.array(coordinate_point(eom, q), dtype=float)
     uv = _given(eom, u, (), list(eom.u), "speed")[0]
     return np.concatenate([phi(qv), A(qv) @ uv + phi_t(qv)])
 

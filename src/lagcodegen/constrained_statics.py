@@ -14,7 +14,7 @@ import scipy.optimize
 import sympy as sp
 
 from .derive import EquationsOfMotion
-from .statics import _point, _vector_function, equilibrium_conditions, resolve_values, substitute_values
+from .statics import coordinate_point, vector_function, equilibrium_conditions, resolve_values, substitute_values
 
 
 def constrained_equilibrium(eom: EquationsOfMotion, q_guess: Any, values: Mapping | None = None, *,
@@ -67,7 +67,7 @@ def constrained_equilibrium(eom: EquationsOfMotion, q_guess: Any, values: Mappin
     """
     _check_static_constraints(eom)
     vals = resolve_values(eom, {} if values is None else values)
-    q0 = np.array(_point(eom, q_guess), dtype=float)
+    q0 = np.array(coordinate_point(eom, q_guess), dtype=float)
     held = _held(eom, fix, q0)
     q0[list(held)] = list(held.values())
     free = [i for i in range(eom.n) if i not in held]
@@ -78,9 +78,9 @@ def constrained_equilibrium(eom: EquationsOfMotion, q_guess: Any, values: Mappin
     G = sp.Matrix.vstack((F - A.T * lam).extract(free, [0]), phi).xreplace(
         {eom.q[i]: sp.Float(v) for i, v in held.items()})
     z = [eom.q[i] for i in free] + list(lam)
-    F_num, A_num = _vector_function(list(eom.q), F, (eom.n,)), _vector_function(list(eom.q), A, A.shape)
+    F_num, A_num = vector_function(list(eom.q), F, (eom.n,)), vector_function(list(eom.q), A, A.shape)
     lam0 = np.linalg.lstsq(A_num(q0)[:, free].T, F_num(q0)[free], rcond=None)[0]
-    x = _root(eom, _vector_function(z, G, (len(z),)), _vector_function(z, G.jacobian(z), (len(z), len(z))),
+    x = _root(eom, vector_function(z, G, (len(z),)), vector_function(z, G.jacobian(z), (len(z), len(z))),
               np.concatenate([q0[free], lam0]), z, lambda x: _force_scale(F_num, A_num, q0, free, x), tol)
     q, lam_c = q0.copy(), x[len(free):]
     q[free] = x[:len(free)]

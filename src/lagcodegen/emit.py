@@ -107,7 +107,7 @@ def template_dir() -> Path:
 
 
 @functools.lru_cache(maxsize=1)
-def _environment() -> jinja2.Environment:
+def template_environment() -> jinja2.Environment:
     """One environment per process: it keeps the compiled templates, which cost more than a
     render (the lane variant and every later model reuse them)."""
     return jinja2.Environment(
@@ -222,7 +222,7 @@ def render_sources(system: ReducedSystem, precision: str = "double", model_name:
     context["needs_spd"] = bool((context["has_constraints"] and (context["has_dynamics"]
                                                                  or context["has_constraint_terms"]))
                                 or context["has_symplectic_euler"])
-    env = _environment()
+    env = template_environment()
     header_name = f"{names.prefix}.h"
     source_name = f"{names.prefix}.c"
     context["header_name"] = header_name
@@ -272,7 +272,7 @@ def trig_source(precision: str = "double") -> str:
     if precision not in PRECISIONS:
         raise EmitError(f"precision must be one of {PRECISIONS}, got {precision!r}")
     every = {"emit_sin": True, "emit_cos": True, "emit_sin_fast": True, "emit_cos_fast": True}
-    return _environment().get_template("trig.c.j2").render(every | _trig_template_context(precision))
+    return template_environment().get_template("trig.c.j2").render(every | _trig_template_context(precision))
 
 
 def _kernel_of(output: str) -> str:

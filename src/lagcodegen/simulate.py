@@ -122,7 +122,7 @@ def parameter_vector(system: CompiledSystem, params: Mapping | None = None) -> n
     missing = [name for name in layout.parameters if name not in values]
     if missing:
         raise ValueError(f"no value for parameter(s) {', '.join(missing)} of model {layout.model!r}")
-    p = np.array([values[name] for name in layout.parameters], dtype=_dtype(system))
+    p = np.array([values[name] for name in layout.parameters], dtype=real_dtype(system))
     bad = [name for name, v in zip(layout.parameters, p) if not np.isfinite(v)]
     if bad:
         raise ValueError(f"parameter(s) {', '.join(bad)} are not finite")
@@ -153,18 +153,18 @@ def initial_state(system: CompiledSystem, x0) -> np.ndarray:
            and not isinstance(value, bool) and not math.isfinite(float(value))]
     if bad:
         raise ValueError(f"initial state is not finite in {', '.join(bad)}: {values}")
-    x = np.array(real_values(values, names, "initial state variable"), dtype=_dtype(system))
+    x = np.array(real_values(values, names, "initial state variable"), dtype=real_dtype(system))
     bad = [name for name, value in zip(names, x) if not np.isfinite(value)]
     if bad:  # finite doubles beyond the float range
         raise ValueError(f"initial state is not finite in {', '.join(bad)} at {layout.precision} precision")
     return x
 
 
-def _dtype(system: CompiledSystem):
+def real_dtype(system: CompiledSystem):
     return np.float32 if system.layout.precision == "float" else np.float64
 
 
-def _pointer(system: CompiledSystem, array: np.ndarray):
+def c_pointer(system: CompiledSystem, array: np.ndarray):
     ctype = "float[]" if system.layout.precision == "float" else "double[]"
     return system.ffi.from_buffer(ctype, array, require_writable=array.flags.writeable)
 
@@ -274,7 +274,7 @@ NEEDED_OUTPUT = {"energy": "energy", "points": "points", "project": "constraints
 
 
 def _run(system, x, p, t0, h, n_steps, stride, method, outputs, track_residuals) -> Trajectory:
-    layout, dtype = system.layout, _dtype(system)
+    layout, dtype = system.layout, real_dtype(system)
     n_out = n_steps // stride + 1
     t_out = np.empty(n_out, dtype=dtype)
     x_out = np.empty((n_out, 2 * layout.n), dtype=dtype)
@@ -283,11 +283,11 @@ def _run(system, x, p, t0, h, n_steps, stride, method, outputs, track_residuals)
     m = layout.n_constraints
     r_out = np.full((n_out, 2 * m), np.nan, dtype=dtype) if m and track_residuals else None
     m_out = np.full((n_out, m + layout.n), np.nan, dtype=dtype) if m and outputs["multipliers"] else None
-    work = np.empty(_work_size(system), dtype=dtype)
+    work = np.empty(work_size(system), dtype=dtype)
     steps_done = system.ffi.new("long *")
-    ptr = lambda a: system.ffi.NULL if a is None else _pointer(system, a)  # noqa: E731
+    ptr = lambda a: system.ffi.NULL if a is None else c_pointer(system, a)  # noqa: E731
     simulate_c = getattr(system.lib, f"{layout.prefix}_simulate")
-    code = simulate_c(layout.methods.index(method), t0, _pointer(system, x), _pointer(system, p), h,
+    code = simulate_c(layout.methods.index(method), t0, c_pointer(system, x), c_pointer(system, p), h,
                       n_steps, stride, int(outputs["project"]), ptr(t_out), ptr(x_out), ptr(e_out), ptr(p_out),
                       ptr(r_out), ptr(m_out), ptr(work), steps_done)
     status = Status(code)
@@ -307,7 +307,7 @@ def _run(system, x, p, t0, h, n_steps, stride, method, outputs, track_residuals)
     return trajectory
 
 
-def _work_size(system: CompiledSystem) -> int:
+def work_size(system: CompiledSystem) -> int:
     return int(getattr(system.lib, f"{system.layout.prefix.upper()}_WORK_SIZE"))
 
 
@@ -318,9 +318,9 @@ def jacobian(system: CompiledSystem, x, p, t: float = 0.0) -> np.ndarray:
     if name not in layout.functions:
         raise ValueError(f"model {layout.model!r} was compiled without the 'jacobian' output")
     size = 2 * layout.n
-    J = np.empty((size, size), dtype=_dtype(system))
-    x, p = np.ascontiguousarray(x, dtype=_dtype(system)), np.ascontiguousarray(p, dtype=_dtype(system))
-    code = getattr(system.lib, name)(t, _pointer(system, x), _pointer(system, p), _pointer(system, J))
+    J = np.empty((size, size), dtype=real_dtype(system))
+    x, p = np.ascontiguousarray(x, dtype=real_dtype(system)), np.ascontiguousarray(p, dtype=real_dtype(system))
+    code = getattr(system.lib, name)(t, c_pointer(system, x), c_pointer(system, p), c_pointer(system, J))
     if code != Status.OK:
         raise ValueError(f"jacobian failed at x = {x}: {Status(code).message}")
     return J
@@ -411,14 +411,14 @@ def make_rhs(system: CompiledSystem, params: Mapping | None = None):
     """``f(t, x) -> xdot`` (numpy) calling the compiled rhs; raises on a non-OK status."""
     layout = system.layout
     p = parameter_vector(system, params)
-    p_ptr = _pointer(system, p)
+    p_ptr = c_pointer(system, p)
     rhs_c = getattr(system.lib, f"{layout.prefix}_rhs")
-    dtype = _dtype(system)
+    dtype = real_dtype(system)
 
     def f(t, x):
         x = np.ascontiguousarray(x, dtype=dtype)
         out = np.empty_like(x)
-        code = rhs_c(t, _pointer(system, x), p_ptr, _pointer(system, out))
+        code = rhs_c(t, c_pointer(system, x), p_ptr, c_pointer(system, out))
         if code != Status.OK:
             raise FloatingPointError(f"rhs failed at t = {t}: {Status(code).message}")
         return out

@@ -150,8 +150,8 @@ def _solve_symbolic(eom: EquationsOfMotion, G: sp.Matrix) -> list[dict]:
 def _solve_numeric(eom: EquationsOfMotion, G: sp.Matrix, vals: dict, guesses: Any) -> list[dict]:
     n, q = eom.n, list(eom.q)
     Gn = substitute_values(eom, G, vals, "equilibrium conditions")
-    fun = _vector_function(q, Gn, (n,))
-    jac = _vector_function(q, Gn.jacobian(q), (n, n))
+    fun = vector_function(q, Gn, (n,))
+    jac = vector_function(q, Gn.jacobian(q), (n, n))
     angles = angle_like(eom)
     starts = _starting_points(eom, guesses, angles)
     with np.errstate(all="ignore"):
@@ -166,7 +166,7 @@ def _solve_numeric(eom: EquationsOfMotion, G: sp.Matrix, vals: dict, guesses: An
     return [dict(zip(q, map(float, x))) for x in _unique(roots, angles)]
 
 
-def _vector_function(q: list, expr: sp.Matrix, shape: tuple):
+def vector_function(q: list, expr: sp.Matrix, shape: tuple):
     f = sp.lambdify([q], expr, "numpy")
     return lambda x: np.asarray(f(x), dtype=float).reshape(shape)
 
@@ -191,7 +191,7 @@ def _starting_points(eom: EquationsOfMotion, guesses: Any, angles: tuple) -> np.
     n = eom.n
     if guesses is not None:
         guesses = [guesses] if isinstance(guesses, Mapping) else guesses
-        rows = [_point(eom, g) if isinstance(g, Mapping) else g for g in guesses]
+        rows = [coordinate_point(eom, g) if isinstance(g, Mapping) else g for g in guesses]
         try:
             x0 = np.array(rows, dtype=float)
         except (TypeError, ValueError):
@@ -266,7 +266,7 @@ def substitute_values(eom: EquationsOfMotion, expr: sp.Matrix, vals: dict, what:
     return out
 
 
-def _point(eom: EquationsOfMotion, q0: Any) -> tuple:
+def coordinate_point(eom: EquationsOfMotion, q0: Any) -> tuple:
     """q0 as a tuple of n entries; q0 is a sequence or a mapping (q Symbol or name) -> value."""
     names = ", ".join(map(str, eom.q))
     if isinstance(q0, Mapping):
@@ -389,7 +389,7 @@ def linearize(eom: EquationsOfMotion, q0: Any, values: Mapping | None = None) ->
         Wrong q0 length or unknown coordinate; unknown or missing parameter; F not
         differentiable at rest (``sign(u)`` friction, for instance).
     """
-    point = _point(eom, q0)
+    point = coordinate_point(eom, q0)
     at = {qi: sp.sympify(v) for qi, v in zip(eom.q, point)}
     at[eom.t] = sp.S.Zero
     rest = {ui: 0 for ui in eom.u}

@@ -29,7 +29,7 @@ import numpy as np
 
 from .build import CompiledSystem
 from .run_arguments import check_memory, check_output_size, flag, output_bytes, positive_int, step_count, stride_within
-from .simulate import _dtype, _pointer, _work_size, compiled_method
+from .simulate import real_dtype, c_pointer, work_size, compiled_method
 from .status import CHUNK_FAILED, NOT_RUN, SWEEP_STATUS_NAMES, Status  # noqa: F401 (re-exported)
 from .sweep_members import (cartesian_members, cartesian_product, column_values, grid_axes,  # noqa: F401
                             member_arrays, table_members)
@@ -278,7 +278,7 @@ class _Job:
 
 
 def _allocate(job: _Job, n_members: int) -> dict:
-    layout, dtype = job.system.layout, _dtype(job.system)
+    layout, dtype = job.system.layout, real_dtype(job.system)
     size = 2 * layout.n
     return {
         "x_final": np.full((n_members, size), np.nan, dtype),
@@ -303,21 +303,21 @@ def _call(job: _Job, xs, ps, out) -> None:
     traj = out["traj"]
     if job.lanes:
         lanes_c = getattr(system.lib, f"{layout.prefix}_sweep_lanes")
-        code = lanes_c(job.method_id, len(xs), _pointer(system, xs), _pointer(system, ps), job.t0, job.h,
-                       job.n_steps, job.stride, int(job.track_energy), _pointer(system, out["x_final"]),
-                       _pointer(system, out["q_max"]), _pointer(system, out["energy_error"]),
+        code = lanes_c(job.method_id, len(xs), c_pointer(system, xs), c_pointer(system, ps), job.t0, job.h,
+                       job.n_steps, job.stride, int(job.track_energy), c_pointer(system, out["x_final"]),
+                       c_pointer(system, out["q_max"]), c_pointer(system, out["energy_error"]),
                        ffi.from_buffer("int[]", out["status"]), ffi.from_buffer("long[]", out["steps_done"]),
-                       ffi.NULL if traj is None else _pointer(system, traj))
+                       ffi.NULL if traj is None else c_pointer(system, traj))
         if code != Status.OK:
             raise RuntimeError(f"{layout.prefix}_sweep_lanes refused method number {job.method_id} ({code})")
         return
-    work = np.empty(_work_size(system), dtype=_dtype(system))
+    work = np.empty(work_size(system), dtype=real_dtype(system))
     sweep_c = getattr(system.lib, f"{layout.prefix}_sweep")
-    sweep_c(job.method_id, len(xs), _pointer(system, xs), _pointer(system, ps), job.t0, job.h, job.n_steps,
-            job.stride, int(job.project), int(job.track_energy), _pointer(system, out["x_final"]), _pointer(system, out["q_max"]),
-            _pointer(system, out["energy_error"]), ffi.from_buffer("int[]", out["status"]),
+    sweep_c(job.method_id, len(xs), c_pointer(system, xs), c_pointer(system, ps), job.t0, job.h, job.n_steps,
+            job.stride, int(job.project), int(job.track_energy), c_pointer(system, out["x_final"]), c_pointer(system, out["q_max"]),
+            c_pointer(system, out["energy_error"]), ffi.from_buffer("int[]", out["status"]),
             ffi.from_buffer("long[]", out["steps_done"]),
-            ffi.NULL if traj is None else _pointer(system, traj), _pointer(system, work))
+            ffi.NULL if traj is None else c_pointer(system, traj), c_pointer(system, work))
 
 
 def _progress_bar(total: int, progress: bool | None):

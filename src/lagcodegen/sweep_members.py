@@ -9,7 +9,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from .build import CompiledSystem
-from .simulate import _dtype, initial_state, parameter_vector
+from .simulate import real_dtype, initial_state, parameter_vector
 
 
 def cartesian_members(grid: Mapping[str, Sequence[float]]) -> tuple[tuple, np.ndarray, tuple]:
@@ -97,7 +97,7 @@ def member_arrays(system: CompiledSystem, columns, values, x0, params):
     bad = [name for j, name in enumerate(columns) if not np.all(np.isfinite(values[:, j]))]
     if bad:
         raise ValueError(f"swept values of {', '.join(bad)} are not all finite")
-    dtype = _dtype(system)
+    dtype = real_dtype(system)
     if isinstance(x0, Mapping):  # swept state variables need no base value
         x0 = {**{name: 0.0 for name in columns if name in state_names}, **x0}
     base_x = initial_state(system, x0)

@@ -19,7 +19,7 @@ from pathlib import Path
 import pytest
 
 from lagcodegen.catalog import EXAMPLES
-from lagcodegen.regenerate import example_files, write_generated
+from regenerate import example_files, write_generated
 
 HINT = "python -m pytest tests/golden --update-golden"
 NAMES = sorted(EXAMPLES)
@@ -83,7 +83,7 @@ def test_no_timestamps_or_paths(name, regenerated, repo_root):
 
 _CHILD = """
 import hashlib, sys
-from lagcodegen.regenerate import example_files
+from regenerate import example_files
 files = example_files(sys.argv[1])
 for name in sorted(files):
     print(name, hashlib.sha256(files[name].encode()).hexdigest())
@@ -91,7 +91,9 @@ for name in sorted(files):
 
 
 def fresh_process_digest(name: str, hash_seed: str) -> str:
-    env = {**os.environ, "PYTHONHASHSEED": hash_seed}
+    tools = str(Path(__file__).resolve().parents[2] / "tools")
+    env = {**os.environ, "PYTHONHASHSEED": hash_seed,
+           "PYTHONPATH": os.pathsep.join(filter(None, [tools, os.environ.get("PYTHONPATH")]))}
     run = subprocess.run([sys.executable, "-c", _CHILD, name], capture_output=True, text=True, env=env,
                          timeout=300, check=False)
     assert run.returncode == 0, run.stderr

@@ -40,7 +40,7 @@ def run(argv, **kwargs) -> subprocess.CompletedProcess:
 def _rendered_sources(name: str) -> list:
     """The `CSources` regeneration renders for generated/<name>/ (their layouts name the methods
     and the functions), caught on their way through `regenerate.example_files`."""
-    from lagcodegen import regenerate
+    import regenerate
 
     caught = []
     render = regenerate.render_sources
@@ -59,7 +59,7 @@ def _rendered_sources(name: str) -> list:
 def _initial_state(eom) -> tuple:
     """(x0, p): the regeneration's sample state, on the constraints if there are any."""
     from lagcodegen.consistent import consistent_state
-    from lagcodegen.regenerate import sample_state
+    from regenerate import sample_state
 
     sample = sample_state(eom)
     x = [float(v) for v in sample.x]

@@ -1,22 +1,30 @@
-"""Helper: write the C of every catalog example into ``generated/`` (and check it is fresh).
+"""Maintenance tool: write the C of every catalog example into ``generated/`` (and check it is fresh).
 
 For each example: ``lcg_<name>.{h,c}`` in double, ``lcg_<name>_f32.{h,c}`` in float and a C test
 ``test_lcg_<name>.c`` (and ``_f32``) whose expected values come from sympy evaluation at 30
 digits, an independent route from CSE, printing and compilation. Files are rewritten only
 when their content changes.
+
+    python tools/regenerate.py           # rewrite generated/ where it changed
+    python tools/regenerate.py --check   # exit 1, listing the stale files, without writing
+
+`tests/golden/test_generated.py` runs the same check (``--update-golden`` rewrites).
 """
 from __future__ import annotations
 
+import argparse
+import sys
+import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
 import sympy as sp
 
-from .catalog import EXAMPLES
-from .cse import momentum_obstacle, reduce_expressions
-from .derive import EquationsOfMotion, derive_equations
-from .emit import _environment, comment_text, render_sources
-from .schemes import required_outputs
+from lagcodegen.catalog import EXAMPLES
+from lagcodegen.cse import momentum_obstacle, reduce_expressions
+from lagcodegen.derive import EquationsOfMotion, derive_equations
+from lagcodegen.emit import template_environment, comment_text, render_sources
+from lagcodegen.schemes import required_outputs
 
 #: time of the C tests' sample state (rheonomic models depend on it)
 SAMPLE_TIME = 0.25
@@ -98,11 +106,11 @@ def _c_test(sources, sample: SampleState, precision: str) -> str:
         "accel_values": _numbers(sample.ud), "time": literal(SAMPLE_TIME),
         "tolerance": TOLERANCE[precision],
     }
-    return _environment().get_template("test_model.c.j2").render(context, template="test_model.c.j2")
+    return template_environment().get_template("test_model.c.j2").render(context, template="test_model.c.j2")
 
 
 def _version() -> str:
-    from . import __version__
+    from lagcodegen import __version__
     return __version__
 
 
@@ -118,3 +126,26 @@ def write_generated(root: Path, names=None) -> list:
                 path.write_text(text)
                 changed.append(path)
     return changed
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description="Write (or check) the committed C in generated/.")
+    parser.add_argument("--check", action="store_true", help="only report stale files; exit 1 if any")
+    parser.add_argument("--root", type=Path, default=Path(__file__).resolve().parents[1] / "generated")
+    args = parser.parse_args(argv)
+    if not args.check:
+        for path in write_generated(args.root):
+            print(f"wrote {path}")
+        return 0
+    with tempfile.TemporaryDirectory() as fresh:
+        write_generated(Path(fresh))
+        stale = [str(path.relative_to(fresh)) for path in sorted(Path(fresh).rglob("*"))
+                 if path.is_file() and (not (args.root / path.relative_to(fresh)).is_file()
+                                        or (args.root / path.relative_to(fresh)).read_text() != path.read_text())]
+    for name in stale:
+        print(f"stale: generated/{name}")
+    return 1 if stale else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
