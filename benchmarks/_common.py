@@ -1,6 +1,6 @@
 """Helpers shared by the `kernels` and `integrators` suites (not a suite itself: no ``bench_``).
 
-Worker side: `emit` (one prefixed JSON message per phase, the protocol of
+Worker side: `render` (one prefixed JSON message per phase, the protocol of
 `bench_derive.run_in_subprocess`), `best_seconds` (minimum over repeats), the models by
 tag, `rhs_harness` (a C loop over a compiled rhs, so per-evaluation costs are measured in C),
 `count_c_ops` and `pydy_chain_rhs`. Parent side: `run_worker` (a fresh process under hard

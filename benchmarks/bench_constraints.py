@@ -53,7 +53,6 @@ Run through the suite runner: ``python benchmarks/run.py constraints [--quick]``
 """
 from __future__ import annotations
 
-import json
 import shutil
 import sys
 import tempfile
@@ -120,7 +119,7 @@ def _runs(scenario: str):
 
 
 def worker_cost(scenario: str, steps: str, repeat: str) -> None:
-    from lagcodegen.simulate import simulate
+    from lagcodegen.run.simulate import simulate
 
     steps, repeat = int(steps), int(repeat)
     runs, build_seconds = _runs(scenario)
@@ -152,7 +151,7 @@ def worker_drift(scenario: str, max_steps: str) -> None:
 
     import numpy as np
 
-    from lagcodegen.simulate import simulate
+    from lagcodegen.run.simulate import simulate
 
     max_steps = int(max_steps)
     checkpoints = _checkpoints(max_steps)
@@ -201,7 +200,7 @@ def worker_drift(scenario: str, max_steps: str) -> None:
 def worker_reference(scenario: str, max_steps: str) -> None:
     from lagcodegen import catalog
     from lagcodegen.pipeline import compile_model
-    from lagcodegen.simulate import solve_reference
+    from lagcodegen.run.simulate import solve_reference
 
     theta0, omega0, params, _ = SCENARIOS[scenario]
     system = compile_model(catalog.slider_crank_minimal(), methods=("rk4",))
@@ -385,9 +384,10 @@ def _accuracy_table(rows, scenarios, checkpoints) -> str:
 def format_report(data: dict, rows: list) -> str:
     import platform
 
-    import lagcodegen
     from _common import compiler_version, peer_versions
-    from lagcodegen.build import DEFAULT_FLAGS
+
+    import lagcodegen
+    from lagcodegen.native.build import DEFAULT_FLAGS
 
     scenarios = list(data["scenarios"])
     checkpoints = data["checkpoints"]
@@ -424,10 +424,10 @@ def format_report(data: dict, rows: list) -> str:
                     for s in scenarios)
         + " (memory not measured: stride 1 "
         f"keeps {data['max_steps'] + 1:.0e} x 18 doubles per run)",
-        f"accuracy: |theta| differences [rad] at each checkpoint; 'at h/2' = both runs repeated with rk4 at "
-        f"h/2 and sampled at the same times (truncation error shrinks 16x, round-off does not); "
-        f"minimal(h/2) - minimal estimates the minimal run's own error; reference = scipy DOP853 rtol = "
-        f"atol = 1e-13 on the minimal model's compiled rhs ("
+        "accuracy: |theta| differences [rad] at each checkpoint; 'at h/2' = both runs repeated with rk4 at "
+        "h/2 and sampled at the same times (truncation error shrinks 16x, round-off does not); "
+        "minimal(h/2) - minimal estimates the minimal run's own error; reference = scipy DOP853 rtol = "
+        "atol = 1e-13 on the minimal model's compiled rhs ("
         + ", ".join(f"{s} {fmt(ref_seconds[s], '.1f')} s" for s in scenarios) + " for both tolerances)",
         f"time-out: {data['timeout']:g} s per phase (+{IMPORT_TIMEOUT:g} s for import, derive and build); "
         f"a run that stopped early shows failed@<step>"

@@ -132,6 +132,7 @@ def worker(tool: str, n: int) -> None:
 
     # import cost is not derivation cost: every tool's modules are loaded before the clock starts
     import sympy.physics.mechanics  # noqa: F401
+
     import lagcodegen  # noqa: F401
     import lagcodegen.catalog  # noqa: F401
 

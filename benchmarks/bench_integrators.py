@@ -71,7 +71,7 @@ def _compiled():
 
 
 def worker_reference() -> None:
-    from lagcodegen.simulate import solve_reference
+    from lagcodegen.run.simulate import solve_reference
 
     system = _compiled()
     emit(phase="ready")
@@ -175,7 +175,6 @@ def worker_ours(reference_json: str, quick: str) -> None:
 
 def worker_hand(reference_json: str, quick: str) -> None:
     import numpy as np
-
     from peers import load_hand_double_pendulum
 
     reference = json.loads(reference_json)
@@ -243,9 +242,8 @@ def worker_pydy(quick: str) -> None:
     import time
 
     import numpy as np
-    from scipy.integrate import solve_ivp
-
     from _common import pydy_chain_rhs
+    from scipy.integrate import solve_ivp
 
     emit(phase="ready")
     f, kane_seconds, generate_seconds = pydy_chain_rhs(2)
@@ -301,7 +299,7 @@ def cheapest(curve: list, level: float):
 
 
 def measure(timeout: float, quick: bool) -> dict:
-    from lagcodegen.schemes import DEFAULT_METHODS
+    from lagcodegen.integrators.schemes import DEFAULT_METHODS
 
     cache = Path(tempfile.mkdtemp(prefix="lcg-bench-cache-"))
     env = {"LAGCODEGEN_CACHE_DIR": str(cache)}
@@ -397,9 +395,10 @@ def _rk4_agreement(data) -> float | None:
 def format_report(data, rows, methods, timeout, quick) -> str:
     import platform
 
-    import lagcodegen
     from _common import compiler_version, peer_versions
-    from lagcodegen.build import DEFAULT_FLAGS
+
+    import lagcodegen
+    from lagcodegen.native.build import DEFAULT_FLAGS
 
     jit, pydy = data["jitcode"], data["pydy"]
     per_decade = PER_DECADE[quick]

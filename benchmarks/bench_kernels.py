@@ -55,8 +55,7 @@ from pathlib import Path
 if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from _common import (DP, count_c_ops, emit, fmt, format_table, label, links, model_of,  # noqa: E402
-                     parse_tag, progress, run_worker)
+from _common import DP, count_c_ops, emit, fmt, format_table, label, links, model_of, parse_tag, progress, run_worker  # noqa: E402
 
 DESCRIPTION = "equations to C: ops after CSE, cold/warm pipeline, ns per qdd vs hand C, PyDy Cython"
 TAGS_FULL = (DP, 5, 10, 20)
@@ -99,15 +98,15 @@ def worker_ops(tag) -> None:
     import sympy as sp
 
     from lagcodegen import derive_equations
-    from lagcodegen.cse import reduce_expressions
-    from lagcodegen.emit import render_sources
+    from lagcodegen.codegen.reduce import reduce_expressions
+    from lagcodegen.codegen.render import render_sources
 
     emit(phase="ready")
     eom = derive_equations(model_of(tag))
     system = reduce_expressions(eom, ("rhs",))
     kernel = system.kernel("dynamics")
     source = render_sources(system).source
-    body = source[source.index(f"_dynamics(double t"):]
+    body = source[source.index("_dynamics(double t"):]
     body = body[:body.index("\n}\n")]
     M, F, mu = _closed_form(eom)
     replacements, reduced = sp.cse(M + F, order="canonical")
@@ -183,13 +182,13 @@ def worker_pipeline(tag, mode: str) -> None:
 
 def worker_speed(tag, repeat: int) -> None:
     import numpy as np
-
     from _common import c_ns_per_eval, per_call_seconds, rhs_harness, sample_state
+
     from lagcodegen import derive_equations
-    from lagcodegen.build import build_module
-    from lagcodegen.cse import reduce_expressions
-    from lagcodegen.emit import render_sources
-    from lagcodegen.simulate import make_rhs, parameter_vector
+    from lagcodegen.codegen.reduce import reduce_expressions
+    from lagcodegen.codegen.render import render_sources
+    from lagcodegen.native.build import build_module
+    from lagcodegen.run.simulate import make_rhs, parameter_vector
 
     emit(phase="ready")
     repeat = max(SPEED_REPEAT, repeat)
@@ -231,8 +230,7 @@ def _hand_check(harness, X, p, rng) -> float:
 
 def worker_pydy(tag, repeat: int) -> None:
     import numpy as np
-
-    from _common import pydy_chain_rhs, per_call_seconds, sample_state
+    from _common import per_call_seconds, pydy_chain_rhs, sample_state
 
     emit(phase="ready")
     f, kane_seconds, generate_seconds = pydy_chain_rhs(links(tag))
@@ -400,10 +398,10 @@ def format_report(ops_rows, timing_rows, timeout, repeat) -> str:
     import platform
 
     import sympy
+    from _common import compiler_version, peer_versions
 
     import lagcodegen
-    from _common import compiler_version, peer_versions
-    from lagcodegen.build import DEFAULT_FLAGS
+    from lagcodegen.native.build import DEFAULT_FLAGS
 
     head = [
         f"kernels suite: lagcodegen {lagcodegen.__version__}, sympy {sympy.__version__}, "

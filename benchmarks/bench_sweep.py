@@ -62,8 +62,20 @@ from pathlib import Path
 if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from _common import (DP, DP_STATE, emit, fmt, format_table, label, links, model_of,  # noqa: E402
-                     parse_tag, progress, run_worker, sample_state)
+from _common import (  # noqa: E402
+    DP,
+    DP_STATE,
+    emit,
+    fmt,
+    format_table,
+    label,
+    links,
+    model_of,
+    parse_tag,
+    progress,
+    run_worker,
+    sample_state,
+)
 
 DESCRIPTION = "parameter sweeps, member-steps/s with RK4: sweep() 1/2 threads vs hand C, MuJoCo rollout, solve_ivp"
 TAGS = (DP, 10)
@@ -179,7 +191,7 @@ def sized_best(run, target: float, repeat: int) -> dict:
 def worker_lcg(tag, threads: int, energy: bool, target: float, quick: bool, kernel: str = "lanes") -> None:
     import numpy as np
 
-    from lagcodegen.sweep import sweep
+    from lagcodegen.run.sweep import sweep
 
     system = _compiled(tag)
     grid, x0 = _mass_grid(tag, quick), _x0(tag)
@@ -276,7 +288,7 @@ def worker_scipy(tag, target: float) -> None:
     import numpy as np
     from scipy.integrate import solve_ivp
 
-    from lagcodegen.simulate import make_rhs
+    from lagcodegen.run.simulate import make_rhs
 
     system = _compiled(tag)
     rhss = [make_rhs(system, {"m1": float(m)}) for m in np.linspace(0.5, 2.0, SCIPY_MEMBERS)]
@@ -301,8 +313,8 @@ def worker_check(tag) -> None:
     from mujoco import rollout
     from scipy.integrate import solve_ivp
 
-    from lagcodegen.simulate import make_rhs
-    from lagcodegen.sweep import sweep
+    from lagcodegen.run.simulate import make_rhs
+    from lagcodegen.run.sweep import sweep
 
     n = links(tag)
     system = _compiled(tag)
@@ -383,7 +395,7 @@ def _compiler_command() -> list:
 
 
 def worker_vector() -> None:
-    from lagcodegen.build import DEFAULT_FLAGS
+    from lagcodegen.native.build import DEFAULT_FLAGS
 
     sources = _compiled(DP).lane_variant().sources  # the build sweep() runs: with the lane kernel
     emit(phase="ready")
@@ -626,9 +638,10 @@ def _vector_section(v: dict) -> str:
 def format_report(rows, checks, vector, target, timeout, start_load) -> str:
     import platform
 
-    import lagcodegen
     from _common import compiler_version, peer_versions
-    from lagcodegen.build import DEFAULT_FLAGS
+
+    import lagcodegen
+    from lagcodegen.native.build import DEFAULT_FLAGS
 
     members = next((r["members"] for r in rows if r["tool"] == "lcg" and "members" in r), None)
     grid = "?" if members is None else f"{math.isqrt(members)} x {math.isqrt(members)} = {members}"

@@ -20,7 +20,7 @@ Cases
   mode carries most of the energy; 1 s; reference: the exact solution expm(J t) x0 (the chain is
   linear), checked against DOP853 at 1e-12.
 * Stability: the stiff chain with that x0; largest h*w whose 2000-step run keeps its energy
-  from growing 10x (`analyze.measured_stability_limit`).
+  from growing 10x (`measures.measured_stability_limit`).
 * Energy: double pendulum, 1e6 steps of h = 0.01 s (1e5 with --quick).
 """
 from __future__ import annotations
@@ -34,10 +34,11 @@ from pathlib import Path
 
 import numpy as np
 
-from lagcodegen import analyze, catalog, figures
+from lagcodegen.analysis import measures, figures
+from lagcodegen import catalog
 from lagcodegen.pipeline import compile_model
-from lagcodegen.schemes import DEFAULT_METHODS, get_scheme
-from lagcodegen.simulate import jacobian, parameter_vector, simulate, solve_reference
+from lagcodegen.integrators.schemes import DEFAULT_METHODS, get_scheme
+from lagcodegen.run.simulate import jacobian, parameter_vector, simulate, solve_reference
 
 DOCS = Path(__file__).resolve().parent
 PENDULUM_X0 = (1.0, 0.5, 0.0, 0.0)
@@ -95,7 +96,7 @@ def orders(records, window=ORDER_WINDOW, points=ORDER_POINTS) -> dict:
     for method in dict.fromkeys(r.method for r in records):
         rows = sorted((r for r in records if r.method == method and r.ok and window[0] <= r.error <= window[1]),
                       key=lambda r: r.h)[:points]
-        out[method] = analyze.observed_order([r.h for r in rows], [r.error for r in rows])
+        out[method] = measures.observed_order([r.h for r in rows], [r.error for r in rows])
     return out
 
 
@@ -104,9 +105,9 @@ def pendulum_case(system, cfg) -> dict:
     t_end = 10.0
     _, x_ref = solve_reference(system, PENDULUM_X0, [t_end])
     _, x_radau = solve_reference(system, PENDULUM_X0, [t_end], method="Radau")
-    records = analyze.work_precision(system, PENDULUM_X0, t_end, DEFAULT_METHODS, cfg["pendulum_steps"],
+    records = measures.work_precision(system, PENDULUM_X0, t_end, DEFAULT_METHODS, cfg["pendulum_steps"],
                                      reference=x_ref[-1], repeats=cfg["repeats"])
-    scipy_records = analyze.scipy_work_precision(system, PENDULUM_X0, t_end, SCIPY_METHODS, cfg["tolerances"],
+    scipy_records = measures.scipy_work_precision(system, PENDULUM_X0, t_end, SCIPY_METHODS, cfg["tolerances"],
                                                  reference=x_ref[-1], repeats=cfg["repeats"])
     difference = float(np.max(np.abs(x_ref - x_radau)))
     check = f"reference DOP853 (1e-12) vs Radau (1e-12) at t = {t_end:g} s: {difference:.1e}"
@@ -121,24 +122,24 @@ def chain_case(system, cfg) -> dict:
     J = jacobian(system, np.asarray(CHAIN_X0), parameter_vector(system))
     x_exact = expm(J * t_end) @ np.asarray(CHAIN_X0)  # linear system: x(t) = exp(J t) x0
     _, x_dop = solve_reference(system, CHAIN_X0, [t_end])
-    records = analyze.work_precision(system, CHAIN_X0, t_end, DEFAULT_METHODS, cfg["chain_steps"],
+    records = measures.work_precision(system, CHAIN_X0, t_end, DEFAULT_METHODS, cfg["chain_steps"],
                                      reference=x_exact, repeats=cfg["repeats"])
-    scipy_records = analyze.scipy_work_precision(system, CHAIN_X0, t_end, SCIPY_METHODS, cfg["tolerances"],
+    scipy_records = measures.scipy_work_precision(system, CHAIN_X0, t_end, SCIPY_METHODS, cfg["tolerances"],
                                                  reference=x_exact, repeats=cfg["repeats"])
     difference = float(np.max(np.abs(x_exact - x_dop[-1])))
     check = f"reference exact expm(J t) x0 vs DOP853 (1e-12) at t = {t_end:g} s: {difference:.1e}"
     return {"records": records, "scipy": scipy_records, "check": check, "steps": cfg["chain_steps"]}
 
 
-def finite_time_limit(method: str, steps: int, growth: float = analyze.GROWTH_LIMIT) -> float:
+def finite_time_limit(method: str, steps: int, growth: float = measures.GROWTH_LIMIT) -> float:
     """Smallest h*w at which |R(i h w)|^(2 m) exceeds ``growth`` with m = 3/4 ``steps`` (the gap
-    between the quarters `analyze.measured_stability_limit` compares): the limit a finite run
+    between the quarters `measures.measured_stability_limit` compares): the limit a finite run
     can see. Explicit RK only (symplectic Euler: its strict limit 2; implicit: inf)."""
     scheme = get_scheme(method)
     if not getattr(scheme, "explicit", False):
-        return analyze.theoretical_stability_limit(method)
+        return measures.theoretical_stability_limit(method)
     import sympy as sp
-    from lagcodegen.tableaux import Z
+    from lagcodegen.integrators.tableaux import Z
 
     R = sp.lambdify(Z, scheme.stability_polynomial(), "numpy")
     y = np.geomspace(1e-3, 10.0, 200001)
@@ -149,9 +150,9 @@ def finite_time_limit(method: str, steps: int, growth: float = analyze.GROWTH_LI
 def stability_case(system) -> dict:
     p = parameter_vector(system)
     w = float(np.max(np.abs(np.linalg.eigvals(jacobian(system, np.asarray(CHAIN_X0), p)))))
-    measured = {m: analyze.measured_stability_limit(system, m, CHAIN_X0, w, steps=STABILITY_STEPS, hi=STABILITY_HI)
+    measured = {m: measures.measured_stability_limit(system, m, CHAIN_X0, w, steps=STABILITY_STEPS, hi=STABILITY_HI)
                 for m in DEFAULT_METHODS}
-    theory = {m: analyze.theoretical_stability_limit(m) for m in DEFAULT_METHODS}
+    theory = {m: measures.theoretical_stability_limit(m) for m in DEFAULT_METHODS}
     finite = {m: finite_time_limit(m, STABILITY_STEPS) for m in DEFAULT_METHODS}
     return {"w": w, "measured": measured, "theory": theory, "finite": finite}
 
@@ -189,7 +190,7 @@ def orders_section(pendulum: dict, chain: dict) -> str:
     rows = [[m, get_scheme(m).order, fmt(op[m], ".2f"), fmt(oc[m], ".2f")] for m in DEFAULT_METHODS]
     return "\n\n".join([
         "### Observed order of convergence",
-        f"Least-squares slope of log(error) against log(h) (`analyze.observed_order`) over the "
+        f"Least-squares slope of log(error) against log(h) (`measures.observed_order`) over the "
         f"{ORDER_POINTS} smallest steps whose error lies in [{ORDER_WINDOW[0]:.0e}, {ORDER_WINDOW[1]:.0e}] "
         "(above the reference floor, below errors of order one; \"-\": fewer than two such runs). "
         "The max-norm mixes position and speed errors, so a slope can sit between two orders while "
@@ -216,7 +217,7 @@ def stability_section(stab: dict) -> str:
         f"largest h*w with |R(i h w)| <= 1 (from the tableau's stability polynomial; symplectic Euler 2; "
         f"implicit A-stable methods: no limit). \"finite-time theory\": the h*w at which |R|^2 per step "
         f"grows the energy 10x over the 1500 steps between the run's first and last quarter. "
-        f"\"measured\": `analyze.measured_stability_limit`, {STABILITY_STEPS} steps per trial.",
+        f"\"measured\": `measures.measured_stability_limit`, {STABILITY_STEPS} steps per trial.",
         markdown_table(["method", "theory h*w", "finite-time theory h*w", "measured h*w", "largest stable h [s]"],
                        rows)])
 
@@ -224,7 +225,7 @@ def stability_section(stab: dict) -> str:
 def energy_section(energy: dict) -> str:
     rows = []
     for m, traj in energy["trajectories"].items():
-        d = analyze.energy_drift(traj)
+        d = measures.energy_drift(traj)
         rows.append([m, fmt(energy["seconds"][m], ".3g"), fmt(d["max_abs"]), fmt(d["max_rel"]), fmt(d["rate"]),
                      fmt(d["final"])])
     t_end = energy["n"] * energy["h"]
@@ -234,7 +235,7 @@ def energy_section(energy: dict) -> str:
         "(second order) and symplectic Euler in momentum form (p = M(q) u; first order, so its bounded "
         "error is larger); rk4 and dopri5 drift linearly.",
         f"{energy['n']:.0e} steps of h = {energy['h']:g} s (t = 0 .. {t_end:g} s), E0 = "
-        f"{analyze.energy_drift(next(iter(energy['trajectories'].values())))['e0']:.6g} J. "
+        f"{measures.energy_drift(next(iter(energy['trajectories'].values())))['e0']:.6g} J. "
         "drift rate: slope of a least-squares line through E(t) - E0.",
         markdown_table(["method", "CPU time [s]", "max abs(E - E0) [J]", "relative", "drift rate [J/s]",
                         "E(t_end) - E0 [J]"], rows)])
@@ -273,7 +274,7 @@ def write_figures(out: Path, pendulum, chain, stab, energy) -> None:
     trajectories = {labels.get(m, m): energy["trajectories"][m] for m in order}
     save(figures.plot_energy_error(
         trajectories, f"Double pendulum energy error, {energy['n']:,} steps of h = {energy['h']:g} s, "
-        f"E(0) = {analyze.energy_drift(trajectories['rk4'])['e0']:.4g} J"), out / "energy_error.png")
+        f"E(0) = {measures.energy_drift(trajectories['rk4'])['e0']:.4g} J"), out / "energy_error.png")
 
 
 def main(argv=None) -> int:

@@ -9,7 +9,7 @@ from lagcodegen import catalog, derive_equations
 
 def main() -> None:
     eom = derive_equations(catalog.bar_on_rollers())
-    x, xd = eom.q[0], eom.u[0]
+    xd = eom.u[0]
     print(f"{eom.name}, route: {eom.route}; q = {eom.q}, u = {eom.u}")
     print("M(q) ud = F(q, u) with")
     print("M =", sp.pretty(eom.mass_matrix, wrap_line=False), sep="\n")

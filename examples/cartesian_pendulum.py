@@ -13,7 +13,7 @@ import sympy as sp
 
 from lagcodegen import catalog, derive_equations
 from lagcodegen.pipeline import compile_model
-from lagcodegen.simulate import simulate
+from lagcodegen.run.simulate import simulate
 
 
 def main() -> None:

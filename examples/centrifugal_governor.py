@@ -6,7 +6,7 @@ Run: python examples/centrifugal_governor.py
 import sympy as sp
 
 from lagcodegen import catalog, derive_equations
-from lagcodegen.statics import find_equilibria, linearize
+from lagcodegen.statics.equilibria import find_equilibria, linearize
 
 
 def main() -> None:

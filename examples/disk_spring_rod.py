@@ -5,7 +5,7 @@ Run: python examples/disk_spring_rod.py
 import sympy as sp
 
 from lagcodegen import catalog, derive_equations
-from lagcodegen.statics import linearize
+from lagcodegen.statics.equilibria import linearize
 
 
 def main() -> None:

@@ -5,7 +5,7 @@ Run: python examples/double_pendulum.py
 import sympy as sp
 
 from lagcodegen import catalog, derive_equations
-from lagcodegen.statics import linearize
+from lagcodegen.statics.equilibria import linearize
 
 
 def main() -> None:

@@ -16,7 +16,7 @@ no flip can ever happen; the script checks that no member there flips. Outside t
 is allowed but not forced: the map shows where and how soon chaos delivers one within t_end.
 
 Flip times come from trajectories kept every `stride`-th step (interpolated between samples;
-`lagcodegen.heatmap.first_crossing_time`). To bound memory the grid runs in batches of m2 rows
+`lagcodegen.analysis.heatmaps.first_crossing_time`). To bound memory the grid runs in batches of m2 rows
 (at most MAX_TRAJECTORY_BYTES of trajectories at a time); only the flip times are kept.
 
 Run: python examples/sweep_double_pendulum.py [--quick] [--out PATH] [--threads N]
@@ -32,9 +32,9 @@ from matplotlib.patches import Patch
 from tqdm.auto import tqdm
 
 from lagcodegen import catalog
-from lagcodegen.heatmap import add_legend_entries, first_crossing_time, plot_heatmap
+from lagcodegen.analysis.heatmaps import add_legend_entries, first_crossing_time, plot_heatmap
 from lagcodegen.pipeline import compile_model
-from lagcodegen.sweep import sweep
+from lagcodegen.run.sweep import sweep
 
 M1, L1, G = 1.0, 1.0, 9.81  # kg, m, m/s^2 (fixed at build time)
 Q0 = {"q1": 1.4, "q2": 1.4}  # rad, both links at rest

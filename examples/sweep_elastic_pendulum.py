@@ -27,9 +27,9 @@ from pathlib import Path
 import numpy as np
 
 from lagcodegen import catalog
-from lagcodegen.heatmap import add_legend_entries, gridded, plot_heatmap
+from lagcodegen.analysis.heatmaps import add_legend_entries, gridded, plot_heatmap
 from lagcodegen.pipeline import compile_model
-from lagcodegen.sweep import sweep
+from lagcodegen.run.sweep import sweep
 
 M, G = 1.0, 9.81          # kg, m/s^2 (fixed at build time)
 PHI0 = 0.01               # rad, initial swing

@@ -2,7 +2,7 @@
 tests/numeric/test_analyze.py used to compile into ~/.cache/lagcodegen)."""
 from __future__ import annotations
 
-from lagcodegen.cache import cache_dir
+from lagcodegen.native.cache import cache_dir
 
 
 def test_every_test_compiles_into_the_session_tmp_dir(tmp_path_factory):

@@ -4,10 +4,10 @@ from __future__ import annotations
 import re
 
 from lagcodegen import catalog, derive_equations
-from lagcodegen.cse import reduce_expressions
-from lagcodegen.emit import render_sources
+from lagcodegen.codegen.reduce import reduce_expressions
+from lagcodegen.codegen.render import render_sources
+from lagcodegen.run.sweep import CHUNK_FAILED, NOT_RUN
 from lagcodegen.status import STATUS_TABLE, SWEEP_STATUS_TABLE, Status, status_markdown
-from lagcodegen.sweep import CHUNK_FAILED, NOT_RUN
 
 
 def test_docs_status_page_is_current(repo_root):

@@ -21,10 +21,10 @@ from pathlib import Path
 import sympy as sp
 
 from lagcodegen.catalog import EXAMPLES
-from lagcodegen.cse import momentum_obstacle, reduce_expressions
-from lagcodegen.derive import EquationsOfMotion, derive_equations
-from lagcodegen.emit import template_environment, comment_text, render_sources
-from lagcodegen.schemes import required_outputs
+from lagcodegen.codegen.reduce import momentum_obstacle, reduce_expressions
+from lagcodegen.codegen.render import comment_text, render_sources, template_environment
+from lagcodegen.integrators.schemes import required_outputs
+from lagcodegen.symbolic.derive import EquationsOfMotion, derive_equations
 
 #: time of the C tests' sample state (rheonomic models depend on it)
 SAMPLE_TIME = 0.25

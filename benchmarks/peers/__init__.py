@@ -36,7 +36,7 @@ def peer_cache_dir() -> Path:
 
 def default_flags() -> tuple:
     """lagcodegen's compile flags (``build.DEFAULT_FLAGS``): peers get exactly the same."""
-    from lagcodegen.build import DEFAULT_FLAGS
+    from lagcodegen.native.build import DEFAULT_FLAGS
 
     return tuple(DEFAULT_FLAGS)
 

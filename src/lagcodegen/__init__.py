@@ -5,10 +5,11 @@ Pipeline (one module per stage, data flows one way)::
     Model --derive_equations--> EquationsOfMotion --reduce_expressions--> ReducedKernel
           --render_sources--> CSources --build_module--> CompiledSystem --simulate/sweep--> arrays
 """
-from importlib.metadata import PackageNotFoundError, version as _version
+from importlib.metadata import PackageNotFoundError
+from importlib.metadata import version as _version
 
 from .model import Model, ModelError
-from .derive import EquationsOfMotion, derive_equations
+from .symbolic.derive import EquationsOfMotion, derive_equations
 
 try:
     __version__ = _version("lagcodegen")

@@ -13,14 +13,15 @@ A model is stated in one of three ways, all consumed by `derive.derive_equations
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Mapping, Sequence
+from typing import Any
 
 import sympy as sp
 import sympy.physics.mechanics as me
 from sympy.core.function import AppliedUndef
 
-from .grouping import components
+from .symbolic.grouping import components
 
 TIME = me.dynamicsymbols._t
 
@@ -99,6 +100,19 @@ class Model:
     constraints : sequence of Expr, optional
         Holonomic constraints phi_i(q, t) = 0 (possibly rheonomic) between redundant coordinates:
         Lagrange's equations of the first kind, with multipliers.
+
+    Examples
+    --------
+    A mass on a spring, by its energies:
+
+    >>> import sympy as sp, sympy.physics.mechanics as me
+    >>> from lagcodegen import Model
+    >>> x = me.dynamicsymbols("x")
+    >>> m, k = sp.symbols("m k", positive=True)
+    >>> model = Model("oscillator", [x], [m, k], kinetic_energy=m * x.diff()**2 / 2,
+    ...               potential_energy=k * x**2 / 2, parameter_values={"m": 1.0, "k": 4.0})
+    >>> model.route
+    'energies'
     """
 
     name: str

@@ -18,23 +18,24 @@ import numbers
 import os
 import tempfile
 import warnings
+from collections.abc import Mapping
 from dataclasses import replace
 from pathlib import Path
-from typing import Mapping
 
 import sympy as sp
 from sympy.core.function import AppliedUndef
 
-from . import __version__, cache
-from .build import CompiledSystem, build_module
-from .buildcost import estimate_build_cost
-from .cse import KernelError, momentum_obstacle, reduce_expressions
-from .derive import EquationsOfMotion, derive_equations
-from .emit import CSources, KernelLayout, render_sources, template_dir
-from .lanes import DEFAULT_LANES
-from .printer import DEFAULT_TRIG
+from . import __version__
+from .codegen.lane_kernel import DEFAULT_LANES
+from .codegen.printer import DEFAULT_TRIG
+from .codegen.reduce import KernelError, momentum_obstacle, reduce_expressions
+from .codegen.render import CSources, KernelLayout, render_sources, template_dir
+from .integrators.schemes import DEFAULT_METHODS, required_outputs
 from .model import Model
-from .schemes import DEFAULT_METHODS, required_outputs
+from .native import cache
+from .native.build import CompiledSystem, build_module
+from .native.build_cost import estimate_build_cost
+from .symbolic.derive import EquationsOfMotion, derive_equations
 
 SIMULATION_OUTPUTS = ("rhs", "energy", "points", "jacobian")
 
@@ -60,7 +61,7 @@ def compile_model(model: Model | EquationsOfMotion, *, outputs=None, fixed: Mapp
         Integration schemes to compile in (`schemes.SCHEMES`).
     precision : {"double", "float"}
     trig : {"libm", "inline"}
-        How sine and cosine are computed (`emit.render_sources`): libm calls (default) or the
+        How sine and cosine are computed (`render.render_sources`): libm calls (default) or the
         inline polynomials of ``templates/trig.c.j2``.
     lanes : int
         Members per vector group of the lane sweep kernel (``sweep`` uses it for explicit methods
@@ -74,7 +75,22 @@ def compile_model(model: Model | EquationsOfMotion, *, outputs=None, fixed: Mapp
     -----
     BuildCostWarning
         The module has to be compiled and the estimated compile time or memory is high
-        (`buildcost.estimate_build_cost`); the message names cheaper options.
+        (`build_cost.estimate_build_cost`); the message names cheaper options.
+
+    Examples
+    --------
+    The mass on a spring, with only RK4 compiled in (a short build):
+
+    >>> import sympy as sp, sympy.physics.mechanics as me
+    >>> from lagcodegen import Model
+    >>> x = me.dynamicsymbols("x")
+    >>> m, k = sp.symbols("m k", positive=True)
+    >>> model = Model("oscillator", [x], [m, k], kinetic_energy=m * x.diff()**2 / 2,
+    ...               potential_energy=k * x**2 / 2, parameter_values={"m": 1.0, "k": 4.0})
+    >>> from lagcodegen.pipeline import compile_model
+    >>> system = compile_model(model, methods=("rk4",))
+    >>> system.layout.parameters, system.layout.methods
+    (('m', 'k'), ('rk4',))
     """
     eom = model if isinstance(model, EquationsOfMotion) else derive_equations(model)
     methods = tuple(methods)
@@ -165,7 +181,8 @@ def _sources_key(eom: EquationsOfMotion, outputs, fixed, methods, precision,
     return cache.source_key({
         "lagcodegen": __version__, "sympy": sp.__version__, "name": eom.name, "route": eom.route,
         "expressions": sp.srepr(expressions),
-        "parameters": sp.srepr(tuple(eom.parameters)) + repr(sorted((str(k), v) for k, v in eom.parameter_values.items())),
+        "parameters": sp.srepr(tuple(eom.parameters))
+        + repr(sorted((str(k), v) for k, v in eom.parameter_values.items())),
         "options": repr((list(outputs), sorted((str(k), float(v)) for k, v in (fixed or {}).items()),
                          list(methods), precision, code_options)),
         "templates": "".join(path.name + path.read_text() for path in templates),
@@ -178,7 +195,7 @@ def _package_digest() -> str:
     """sha256 over every module of the package, subpackages included, and the templates: an
     edited emitter or template must not be served stale sources from the cache under an
     unchanged version number."""
-    from .emit import template_dir
+    from .codegen.render import template_dir
 
     return code_digest(Path(__file__).resolve().parent, template_dir())
 

@@ -1,6 +1,6 @@
 """Helper: the status codes every stage agrees on, in one table.
 
-The C kernels' ``LCG_*`` defines (`emit`, templates ``model.h.j2`` and ``model.cdef.j2``), the
+The C kernels' ``LCG_*`` defines (`render`, templates ``model.h.j2`` and ``model.cdef.j2``), the
 Python enum `Status` with its messages, the sweep-only codes and ``docs/status.md`` are all made
 from `STATUS_TABLE`; a test checks the committed docs against `status_markdown`. Imports no stage.
 """

@@ -18,8 +18,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from lagcodegen import build, cache, pipeline
-from lagcodegen.build import compiler_available
+from lagcodegen import pipeline
+from lagcodegen.native import build, cache
+from lagcodegen.native.build import compiler_available
 from lagcodegen.pipeline import compile_model
 
 needs_cc = pytest.mark.skipif(not compiler_available(), reason="no C compiler / Python headers")

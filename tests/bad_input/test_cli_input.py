@@ -15,8 +15,8 @@ import sys
 
 import pytest
 
-from lagcodegen.cli import main
-from lagcodegen.cli_args import UsageError, join_negative_numbers
+from lagcodegen.cli.arguments import UsageError, join_negative_numbers
+from lagcodegen.cli.commands import main
 
 RUN = ["--t-end", "0.5", "--h", "1e-3"]
 DP = ["double_pendulum", *RUN, "--x0", "q1=1,q2=0.5"]
@@ -158,7 +158,7 @@ def test_traceback_switch_shows_the_exception(monkeypatch):
     with pytest.raises(UsageError, match="'nosuch'"):
         main(["--traceback", "derive", "nosuch"])
     monkeypatch.setenv("LAGCODEGEN_DEBUG", "1")
-    from lagcodegen.cse import KernelError
+    from lagcodegen.codegen.reduce import KernelError
 
     with pytest.raises(KernelError, match="cartesian_pendulum"):  # the library's own exception, unchanged
         main(["emit", "cartesian_pendulum", "--methods", "symplectic_euler"])
@@ -167,7 +167,7 @@ def test_traceback_switch_shows_the_exception(monkeypatch):
 def test_closed_stdout_exits_quietly(tmp_path):
     """``lagcodegen derive X | head``: the reader goes away; no BrokenPipeError traceback, exit
     code 141 (128 + SIGPIPE, what a shell reports for a process killed by SIGPIPE)."""
-    code = "import sys; from lagcodegen.cli import main; sys.exit(main())"
+    code = "import sys; from lagcodegen.cli.commands import main; sys.exit(main())"
     process = subprocess.Popen([sys.executable, "-c", code, "derive", "double_pendulum"], cwd=tmp_path,
                                stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     process.stdout.close()  # before the first line is written: every write meets a closed pipe
@@ -179,7 +179,7 @@ def test_closed_stdout_exits_quietly(tmp_path):
 def test_failed_build_is_one_line_with_exit_code_1(monkeypatch, capsys):
     # a build failure is not the command line's fault: exit code 1 (documented in --help), not 2
     from lagcodegen import pipeline
-    from lagcodegen.build import BuildError
+    from lagcodegen.native.build import BuildError
 
     def failing_build(*args, **kwargs):
         raise BuildError("gcc exited with status 1 (kept /tmp/x.c)", command="gcc", stderr="boom")
@@ -192,11 +192,11 @@ def test_failed_build_is_one_line_with_exit_code_1(monkeypatch, capsys):
 
 
 def test_interrupt_exits_130_quietly(monkeypatch, capsys):
-    from lagcodegen import cli
+    from lagcodegen.cli import commands
 
     def interrupted(args):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(cli, "cmd_derive", interrupted)
+    monkeypatch.setattr(commands, "cmd_derive", interrupted)
     assert main(["derive", "double_pendulum"]) == 130
     assert "Traceback" not in capsys.readouterr().err

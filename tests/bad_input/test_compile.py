@@ -11,10 +11,11 @@ import numpy as np
 import pytest
 import sympy as sp
 
-from lagcodegen import build, buildcost, cache, catalog, derive_equations, pipeline
-from lagcodegen.build import BuildError, compiler_available
-from lagcodegen.cse import KernelError, reduce_expressions
+from lagcodegen import catalog, derive_equations, pipeline
+from lagcodegen.codegen.reduce import KernelError, reduce_expressions
 from lagcodegen.model import TIME, Model, ModelError
+from lagcodegen.native import build, build_cost, cache
+from lagcodegen.native.build import BuildError, compiler_available
 from lagcodegen.pipeline import compile_model
 
 needs_cc = pytest.mark.skipif(not compiler_available(), reason="no C compiler / Python headers")
@@ -139,32 +140,32 @@ def test_estimate_grows_with_the_chain_and_the_methods():
         system = reduce_expressions(derive_equations(catalog.pendulum_chain(n)),
                                     ["rhs", "energy", "points", "jacobian", "momentum"])
         ops = {k.name: k.ops_after for k in system.kernels}
-        default = buildcost.estimate_build_cost(f"chain{n}", ops, pipeline.DEFAULT_METHODS)
-        rk4 = buildcost.estimate_build_cost(f"chain{n}", ops, ("rk4",))
+        default = build_cost.estimate_build_cost(f"chain{n}", ops, pipeline.DEFAULT_METHODS)
+        rk4 = build_cost.estimate_build_cost(f"chain{n}", ops, ("rk4",))
         assert rk4.seconds < default.seconds and default.cheaper_seconds <= rk4.seconds
         assert default.cheaper_megabytes <= default.megabytes
         costs.append(default)
     assert costs[0].seconds < costs[1].seconds < costs[2].seconds
     assert costs[0].megabytes < costs[1].megabytes < costs[2].megabytes
-    assert all(c.seconds < buildcost.MAX_SECONDS and c.megabytes < buildcost.MAX_MEGABYTES for c in costs)
+    assert all(c.seconds < build_cost.MAX_SECONDS and c.megabytes < build_cost.MAX_MEGABYTES for c in costs)
 
 
 def test_large_kernels_pass_the_default_limits():
     # Operation counts of the 40-link chain's kernels (extrapolated, ~n^2, from n = 5..30 in the
-    # calibration table of buildcost.py): a build reported at 6 minutes and 2.6 GB.
+    # calibration table of build_cost.py): a build reported at 6 minutes and 2.6 GB.
     ops = {"dynamics": 4300, "energy": 722, "points": 278, "jacobian": 32200, "momentum": 16500}
-    cost = buildcost.estimate_build_cost("chain40", ops, pipeline.DEFAULT_METHODS)
-    assert cost.seconds > buildcost.MAX_SECONDS or cost.megabytes > buildcost.MAX_MEGABYTES
-    assert cost.cheaper_seconds < buildcost.MAX_SECONDS and cost.cheaper_megabytes < buildcost.MAX_MEGABYTES
+    cost = build_cost.estimate_build_cost("chain40", ops, pipeline.DEFAULT_METHODS)
+    assert cost.seconds > build_cost.MAX_SECONDS or cost.megabytes > build_cost.MAX_MEGABYTES
+    assert cost.cheaper_seconds < build_cost.MAX_SECONDS and cost.cheaper_megabytes < build_cost.MAX_MEGABYTES
 
 
 @pytest.mark.compiler
 @needs_cc
 def test_expensive_build_warns_first_with_cheaper_options(pendulum, fresh_cache, monkeypatch):
-    monkeypatch.setattr(buildcost, "MAX_SECONDS", 0.0)  # every build is "expensive"
-    with pytest.warns(buildcost.BuildCostWarning) as record:
+    monkeypatch.setattr(build_cost, "MAX_SECONDS", 0.0)  # every build is "expensive"
+    with pytest.warns(build_cost.BuildCostWarning) as record:
         system = compile_model(pendulum, methods=("rk4", "heun"))
-    (warning,) = [w for w in record if issubclass(w.category, buildcost.BuildCostWarning)]
+    (warning,) = [w for w in record if issubclass(w.category, build_cost.BuildCostWarning)]
     message = str(warning.message)
     assert "'double_pendulum'" in message and "estimated to take ~" in message and "MB" in message
     assert "methods=('rk4',)" in message and "fewer outputs" in message and "dynamics" in message
@@ -173,7 +174,7 @@ def test_expensive_build_warns_first_with_cheaper_options(pendulum, fresh_cache,
     build._MEMO.clear()  # cached now: loading it again compiles nothing and warns nothing
     import warnings
     with warnings.catch_warnings():
-        warnings.simplefilter("error", buildcost.BuildCostWarning)
+        warnings.simplefilter("error", build_cost.BuildCostWarning)
         again = compile_model(pendulum, methods=("rk4", "heun"))
     assert again.key == system.key
 
@@ -183,5 +184,5 @@ def test_expensive_build_warns_first_with_cheaper_options(pendulum, fresh_cache,
 def test_small_build_does_not_warn(pendulum, fresh_cache):
     import warnings
     with warnings.catch_warnings():
-        warnings.simplefilter("error", buildcost.BuildCostWarning)
+        warnings.simplefilter("error", build_cost.BuildCostWarning)
         compile_model(pendulum, methods=("rk4",))

@@ -16,8 +16,8 @@ import warnings
 import numpy as np
 import pytest
 
-from lagcodegen.run_arguments import OutputTooLargeError, output_bytes
-from lagcodegen.simulate import Status, simulate, warn_if_unstable
+from lagcodegen.run.arguments import OutputTooLargeError, output_bytes
+from lagcodegen.run.simulate import Status, simulate, warn_if_unstable
 
 pytestmark = pytest.mark.compiler
 

@@ -12,8 +12,8 @@ import math
 import numpy as np
 import pytest
 
-from lagcodegen.run_arguments import OutputTooLargeError
-from lagcodegen.sweep import sweep
+from lagcodegen.run.arguments import OutputTooLargeError
+from lagcodegen.run.sweep import sweep
 
 pytestmark = pytest.mark.compiler
 

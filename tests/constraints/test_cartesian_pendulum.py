@@ -21,7 +21,7 @@ import pytest
 
 from lagcodegen import catalog
 from lagcodegen.pipeline import compile_model
-from lagcodegen.simulate import parameter_vector, simulate, solve_reference
+from lagcodegen.run.simulate import parameter_vector, simulate, solve_reference
 
 THETA0, THETA0_D = 1.0, 0.5   # rad, rad/s: a large swing (57 degrees), not a small-angle case
 T_END, H = 3.0, 1e-3

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from lagcodegen.cli import main
+from lagcodegen.cli.commands import main
 
 
 @pytest.mark.compiler

@@ -1,5 +1,5 @@
-"""Consistent initial states (`lagcodegen.consistent`) and equilibria with multipliers
-(`lagcodegen.constrained_statics.constrained_equilibrium`) of models with holonomic constraints.
+"""Consistent initial states (`lagcodegen.statics.consistent`) and equilibria with multipliers
+(`lagcodegen.statics.constrained.constrained_equilibrium`) of models with holonomic constraints.
 
 Sources:
 [BJ]  Beer & Johnston, Vector Mechanics for Engineers: Statics, ch. 10 (method of virtual work:
@@ -21,8 +21,8 @@ import sympy as sp
 import sympy.physics.mechanics as me
 
 from lagcodegen import Model, derive_equations
-from lagcodegen.consistent import consistent_state, constraint_residuals
-from lagcodegen.constrained_statics import constrained_equilibrium
+from lagcodegen.statics.consistent import consistent_state, constraint_residuals
+from lagcodegen.statics.constrained import constrained_equilibrium
 
 
 # -- models -------------------------------------------------------------------------------------
@@ -252,7 +252,7 @@ def test_slider_crank_balanced_state_is_at_rest_in_the_dynamic_equations(slider_
 def test_slider_crank_compiled_multipliers_agree_at_rest(slider_crank, kernel_cache_dir):
     # Third route: the generated C solves the first-kind system for lam at the balanced state.
     from lagcodegen.pipeline import compile_model
-    from lagcodegen.simulate import parameter_vector
+    from lagcodegen.run.simulate import parameter_vector
 
     theta = THETAS[2]
     values = {"tau": 2.0, "P": 2.0 / crank_geometry(theta)[2]}

@@ -20,7 +20,7 @@ import pytest
 import sympy as sp
 
 from lagcodegen import catalog
-from lagcodegen.simulate import DRIFT_TOLERANCE, ConstraintDriftWarning, simulate
+from lagcodegen.run.simulate import DRIFT_TOLERANCE, ConstraintDriftWarning, simulate
 
 pytestmark = pytest.mark.compiler
 

@@ -15,9 +15,9 @@ import subprocess
 import numpy as np
 import pytest
 
-from lagcodegen.cse import reduce_expressions
-from lagcodegen.emit import render_sources
-from lagcodegen.simulate import simulate
+from lagcodegen.codegen.reduce import reduce_expressions
+from lagcodegen.codegen.render import render_sources
+from lagcodegen.run.simulate import simulate
 
 MODELS = ("cartesian_pendulum", "slider_crank", "four_bar")
 OUTPUTS = ("rhs", "energy", "points", "constraints", "multipliers")  # compile_model's defaults

@@ -24,7 +24,7 @@ import pytest
 import sympy as sp
 
 from lagcodegen import catalog, derive_equations
-from lagcodegen.simulate import Status, parameter_vector, simulate
+from lagcodegen.run.simulate import Status, parameter_vector, simulate
 
 H = 1e-4
 LENGTH_NAMES = ("l1", "l2", "l3", "d")

@@ -22,8 +22,8 @@ import sympy.physics.mechanics as me
 from scipy.integrate import solve_ivp
 
 from lagcodegen import catalog
-from lagcodegen.simulate import parameter_vector, simulate
-from lagcodegen.sweep import sweep
+from lagcodegen.run.simulate import parameter_vector, simulate
+from lagcodegen.run.sweep import sweep
 
 THETA0, THETA0_D = 0.3, 5.0     # rad, rad/s
 R, L = 0.1, 0.3                  # catalog defaults

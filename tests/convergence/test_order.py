@@ -3,7 +3,7 @@
 The double pendulum (catalog, default parameters m1 = m2 = l1 = l2 = 1, g = 9.81) starts at rest
 from q = (0.3, 0.1) rad: small-to-moderate amplitude, regular motion, largest linear frequency
 sqrt(g (2 + sqrt 2)) = 5.79 rad/s. The final state at T = 2 s is compared with DOP853 at
-rtol = atol = 1e-12 (`lagcodegen.simulate.solve_reference`); the observed order is the slope of
+rtol = atol = 1e-12 (`lagcodegen.run.simulate.solve_reference`); the observed order is the slope of
 log(error) against log(h) (np.polyfit) over each method's asymptotic range.
 
 The step ranges are chosen per method (measured once, see the table printed by
@@ -20,8 +20,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from lagcodegen import schemes
-from lagcodegen.simulate import simulate, solve_reference
+from lagcodegen.integrators import schemes
+from lagcodegen.run.simulate import simulate, solve_reference
 
 X0 = (0.3, 0.1, 0.0, 0.0)  # q1, q2 [rad], q1_d, q2_d [rad/s]
 T_END = 2.0

@@ -30,7 +30,7 @@ from hypothesis import strategies as st
 
 from lagcodegen import Model
 from lagcodegen.pipeline import compile_model
-from lagcodegen.simulate import make_rhs
+from lagcodegen.run.simulate import make_rhs
 
 pytestmark = [pytest.mark.fuzz, pytest.mark.compiler]
 
@@ -46,7 +46,8 @@ _models_checked = []
 
 
 def _leaves(coordinates):
-    return st.sampled_from(list(coordinates) + list(PARAMETERS) + [sp.Integer(1), sp.Integer(2), sp.Rational(1, 2)])
+    # t makes some models rheonomic: M(q, t), b(q, t) and V(q, t) bring the dM/dt and db/dt terms
+    return st.sampled_from(list(coordinates) + list(PARAMETERS) + [t, sp.Integer(1), sp.Integer(2), sp.Rational(1, 2)])
 
 
 def expressions(coordinates, depth: int = 2):
@@ -104,20 +105,21 @@ def reference_accelerations(q, T, V, forces, values):
     table.update({c: s for c, s in zip(q, plain_q)})
     M = method.mass_matrix.subs(values).xreplace(table)
     F = (method.forcing + Q).subs(values).xreplace(table)
-    M_f = sp.lambdify([plain_q, plain_u], M, "numpy")
-    F_f = sp.lambdify([plain_q, plain_u], F, "numpy")
+    M_f = sp.lambdify([t, plain_q, plain_u], M, "numpy")
+    F_f = sp.lambdify([t, plain_q, plain_u], F, "numpy")
 
-    def accelerations(state):
+    def accelerations(at, state):
         positions, speeds = state[:n], state[n:]
-        M_value = np.array(M_f(positions, speeds), dtype=float)
-        return np.linalg.solve(M_value, np.array(F_f(positions, speeds), dtype=float).ravel()), np.linalg.cond(M_value)
+        M_value = np.array(M_f(at, positions, speeds), dtype=float)
+        forcing = np.array(F_f(at, positions, speeds), dtype=float).ravel()
+        return np.linalg.solve(M_value, forcing), np.linalg.cond(M_value)
     return accelerations
 
 
 @settings(max_examples=FUZZ_EXAMPLES, deadline=None, derandomize=os.environ.get("CI") == "true",
           print_blob=True, suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much,
                                                   HealthCheck.data_too_large])
-@given(model=random_models(), states=st.lists(st.lists(st.floats(-2.0, 2.0), min_size=6, max_size=6),
+@given(model=random_models(), states=st.lists(st.lists(st.floats(-2.0, 2.0), min_size=7, max_size=7),
                                               min_size=3, max_size=3))
 def test_compiled_rhs_matches_sympy_lagranges_method(model, states):
     q, T, V, forces, values = model
@@ -126,10 +128,10 @@ def test_compiled_rhs_matches_sympy_lagranges_method(model, states):
     reference = reference_accelerations(q, T, V, forces, values)
     checked = []
     for raw in states:
-        state = np.array(raw[:2 * n])
-        expected, condition = reference(state)
+        at, state = raw[6], np.array(raw[:2 * n])
+        expected, condition = reference(at, state)
         if condition < MAX_CONDITION and np.all(np.isfinite(expected)):
-            checked.append((state, expected))
+            checked.append((at, state, expected))
     assume(checked)
     number = next(_model_numbers)
     started = time.perf_counter()
@@ -138,12 +140,12 @@ def test_compiled_rhs_matches_sympy_lagranges_method(model, states):
               generalized_forces=forces, parameter_values=values),
         outputs=("rhs",), methods=(), extra_compile_args=("-O0",))
     rhs = make_rhs(system)
-    for state, expected in checked:
-        derivative = rhs(0.0, state)
+    for at, state, expected in checked:
+        derivative = rhs(at, state)
         np.testing.assert_array_equal(derivative[:n], state[n:])  # qd = u
         scale = max(1.0, float(np.max(np.abs(expected))))
         np.testing.assert_allclose(derivative[n:], expected, rtol=0, atol=TOLERANCE * scale,
-                                   err_msg=f"model fuzz_{number} at state {state.tolist()}:\n"
+                                   err_msg=f"model fuzz_{number} at t = {at}, state {state.tolist()}:\n"
                                            f"T = {T}\nV = {V}\nQ = {forces}\nvalues = {values}")
     _models_checked.append(time.perf_counter() - started)
 

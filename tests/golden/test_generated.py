@@ -17,9 +17,9 @@ import sys
 from pathlib import Path
 
 import pytest
+from regenerate import example_files, write_generated
 
 from lagcodegen.catalog import EXAMPLES
-from regenerate import example_files, write_generated
 
 HINT = "python -m pytest tests/golden --update-golden"
 NAMES = sorted(EXAMPLES)

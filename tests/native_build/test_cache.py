@@ -22,9 +22,9 @@ from pathlib import Path
 
 import pytest
 
-from lagcodegen import build, cache
-from lagcodegen.build import BuildError, CompiledSystem, build_module, compiler_available
-from lagcodegen.emit import CSources, KernelLayout
+from lagcodegen.codegen.render import CSources, KernelLayout
+from lagcodegen.native import build, cache
+from lagcodegen.native.build import BuildError, CompiledSystem, build_module, compiler_available
 
 needs_cc = pytest.mark.skipif(not compiler_available(), reason="no C compiler / Python headers")
 
@@ -62,7 +62,7 @@ def tiny_sources(tag: str, body: str = "out[i] = in[i] + 1.0;") -> CSources:
             return n;
         }}
         """)
-    return CSources(layout, "tiny.h", header, "tiny.c", source, CDEF)
+    return CSources(layout, "tiny.h", header, "tiny.c", source, CDEF, source_key=f"tiny-{tag}")
 
 
 def call_add(system: CompiledSystem, values) -> list[float]:

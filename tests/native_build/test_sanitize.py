@@ -58,8 +58,9 @@ def _rendered_sources(name: str) -> list:
 
 def _initial_state(eom) -> tuple:
     """(x0, p): the regeneration's sample state, on the constraints if there are any."""
-    from lagcodegen.consistent import consistent_state
     from regenerate import sample_state
+
+    from lagcodegen.statics.consistent import consistent_state
 
     sample = sample_state(eom)
     x = [float(v) for v in sample.x]

@@ -30,8 +30,8 @@ def sources(tmp_path_factory):
     """Every (outputs, precision, trig, lanes) variant of the pendulum, written to disk:
     {label: path of the .c file}."""
     from lagcodegen import derive_equations
-    from lagcodegen.cse import reduce_expressions
-    from lagcodegen.emit import render_sources
+    from lagcodegen.codegen.reduce import reduce_expressions
+    from lagcodegen.codegen.render import render_sources
     from lagcodegen.model import Model
 
     m, l, g = sp.symbols("m l g", positive=True)

@@ -1,4 +1,4 @@
-"""analyze.py against independent values: synthetic data with known answers, the stability
+"""measures.py against independent values: synthetic data with known answers, the stability
 polynomial of RK4, and the structure of the figures (figures.py)."""
 from __future__ import annotations
 
@@ -8,9 +8,10 @@ import math
 import numpy as np
 import pytest
 
-from lagcodegen import analyze, catalog, figures
-from lagcodegen.build import compiler_available
-from lagcodegen.simulate import Status, Trajectory, jacobian, parameter_vector
+from lagcodegen import catalog
+from lagcodegen.analysis import figures, measures
+from lagcodegen.native.build import compiler_available
+from lagcodegen.run.simulate import Status, Trajectory, jacobian, parameter_vector
 
 needs_cc = pytest.mark.skipif(not compiler_available(), reason="no C compiler / Python headers")
 
@@ -37,23 +38,23 @@ def chain():
 @pytest.mark.parametrize("p", [1.0, 2.0, 4.0, 5.0])
 def test_observed_order_of_exact_power_law(p):
     h = np.array([0.1, 0.05, 0.025, 0.0125])
-    assert analyze.observed_order(h, 3.7 * h ** p) == pytest.approx(p, abs=1e-12)  # err = C h^p exactly
+    assert measures.observed_order(h, 3.7 * h ** p) == pytest.approx(p, abs=1e-12)  # err = C h^p exactly
 
 
 def test_observed_order_window_drops_floor_and_preasymptotic_points():
     h = 2.0 ** -np.arange(1, 12)
     err = np.maximum(2.0 * h ** 4, 1e-12)  # fourth order down to a round-off floor at 1e-12
-    assert analyze.observed_order(h, err, window=(1e-10, 1.0)) == pytest.approx(4.0, abs=1e-12)
-    assert analyze.observed_order(h, err) < 3.9  # without the window the floor bends the fit
+    assert measures.observed_order(h, err, window=(1e-10, 1.0)) == pytest.approx(4.0, abs=1e-12)
+    assert measures.observed_order(h, err) < 3.9  # without the window the floor bends the fit
     err[0] = 1e3  # a blown-up run at the largest step
-    assert analyze.observed_order(h, err, window=(1e-10, 1.0)) == pytest.approx(4.0, abs=1e-12)
+    assert measures.observed_order(h, err, window=(1e-10, 1.0)) == pytest.approx(4.0, abs=1e-12)
 
 
 def test_observed_order_skips_nonfinite_and_needs_two_points():
-    assert analyze.observed_order([0.1, 0.05, 0.025], [np.inf, 1e-2, 2.5e-3]) == pytest.approx(2.0)
-    assert math.isnan(analyze.observed_order([0.1, 0.05], [np.nan, 1e-3]))
+    assert measures.observed_order([0.1, 0.05, 0.025], [np.inf, 1e-2, 2.5e-3]) == pytest.approx(2.0)
+    assert math.isnan(measures.observed_order([0.1, 0.05], [np.nan, 1e-3]))
     with pytest.raises(ValueError, match="same length"):
-        analyze.observed_order([0.1, 0.05], [1e-3])
+        measures.observed_order([0.1, 0.05], [1e-3])
 
 
 # -- energy_drift -----------------------------------------------------------------------------
@@ -61,7 +62,7 @@ def test_energy_drift_of_linear_drift_plus_oscillation():
     t = np.linspace(0.0, 10.0, 1001)
     rate, a = 3e-4, 1e-3
     energy = -2.0 + a + rate * t + a * (np.cos(2 * np.pi * t) - 1.0)  # E0 = -2 + a
-    drift = analyze.energy_drift(synthetic_trajectory(t, energy))
+    drift = measures.energy_drift(synthetic_trajectory(t, energy))
     assert drift["e0"] == pytest.approx(-2.0 + a, abs=1e-15)
     # |E - E0| = |rate t + a (cos 2 pi t - 1)| peaks at t = 10 (cos = 1): 3e-3; its minimum
     # -1.85e-3 near t = 0.5 is smaller in size
@@ -76,7 +77,7 @@ def test_energy_drift_of_linear_drift_plus_oscillation():
 def test_energy_drift_needs_energy():
     traj = dataclasses.replace(synthetic_trajectory([0.0, 1.0], [1.0, 1.0]), energy=None)
     with pytest.raises(ValueError, match="energy=True"):
-        analyze.energy_drift(traj)
+        measures.energy_drift(traj)
 
 
 # -- stability --------------------------------------------------------------------------------
@@ -85,19 +86,19 @@ def test_energy_drift_needs_energy():
 def test_measured_stability_limit_of_rk4_is_two_sqrt_two(chain):
     w = float(np.max(np.abs(np.linalg.eigvals(jacobian(chain, np.asarray(CHAIN_X0), parameter_vector(chain))))))
     assert w == pytest.approx(141.4, rel=1e-3)  # sqrt of the stiff eigenvalue ~ sqrt(2 K / m)
-    limit = analyze.measured_stability_limit(chain, "rk4", CHAIN_X0, w)
+    limit = measures.measured_stability_limit(chain, "rk4", CHAIN_X0, w)
     # RK4: |R(iy)|^2 = 1 - y^6/72 + y^8/576 <= 1 exactly for y <= sqrt(8) (HW II, Sec. IV.2)
     assert limit == pytest.approx(2 * math.sqrt(2), rel=0.03)
-    symplectic = analyze.measured_stability_limit(chain, "symplectic_euler", CHAIN_X0, w)
+    symplectic = measures.measured_stability_limit(chain, "symplectic_euler", CHAIN_X0, w)
     assert symplectic == pytest.approx(2.0, rel=0.03)  # trace of the step map 2 - (h w)^2 in [-2, 2]
-    assert analyze.measured_stability_limit(chain, "backward_euler", CHAIN_X0, w, hi=100.0) == math.inf
+    assert measures.measured_stability_limit(chain, "backward_euler", CHAIN_X0, w, hi=100.0) == math.inf
 
 
 def test_theoretical_stability_limits():
-    assert analyze.theoretical_stability_limit("rk4") == pytest.approx(2 * math.sqrt(2))
-    assert analyze.theoretical_stability_limit("symplectic_euler") == 2.0
-    assert analyze.theoretical_stability_limit("euler") == 0.0
-    assert analyze.theoretical_stability_limit("implicit_midpoint") == math.inf
+    assert measures.theoretical_stability_limit("rk4") == pytest.approx(2 * math.sqrt(2))
+    assert measures.theoretical_stability_limit("symplectic_euler") == 2.0
+    assert measures.theoretical_stability_limit("euler") == 0.0
+    assert measures.theoretical_stability_limit("implicit_midpoint") == math.inf
 
 
 # -- work precision ---------------------------------------------------------------------------
@@ -111,18 +112,18 @@ def test_work_precision_records_and_order(chain):
     steps = [1600, 3200, 6400]
     # t_end = 1 s: there the fourth-order phase error dominates the max-norm (at t = 0.5 s the
     # stiff speed is near an extremum and the fifth-order amplitude error still shows)
-    records = analyze.work_precision(chain, CHAIN_X0, 1.0, ["rk4"], steps, reference=exact, repeats=1)
+    records = measures.work_precision(chain, CHAIN_X0, 1.0, ["rk4"], steps, reference=exact, repeats=1)
     assert [r.n_steps for r in records] == steps
     assert all(r.ok and r.seconds > 0 and r.h == pytest.approx(1.0 / r.n_steps) for r in records)
-    assert analyze.observed_order([r.h for r in records], [r.error for r in records]) == pytest.approx(4.0, abs=0.15)
-    diverged = analyze.work_precision(chain, CHAIN_X0, 1.0, ["rk4"], [20], reference=exact, repeats=1)[0]
+    assert measures.observed_order([r.h for r in records], [r.error for r in records]) == pytest.approx(4.0, abs=0.15)
+    diverged = measures.work_precision(chain, CHAIN_X0, 1.0, ["rk4"], [20], reference=exact, repeats=1)[0]
     assert diverged.error > 1.0 or not diverged.ok  # h w = 7.1 > 2.83: unstable
 
 
 @needs_cc
 @pytest.mark.compiler
 def test_scipy_work_precision_records(chain):
-    records = analyze.scipy_work_precision(chain, CHAIN_X0, 0.2, methods=("RK45", "Radau"), tolerances=(1e-6,),
+    records = measures.scipy_work_precision(chain, CHAIN_X0, 0.2, methods=("RK45", "Radau"), tolerances=(1e-6,),
                                            repeats=1)
     assert [(r.method, r.tolerance, r.h, r.n_steps) for r in records] == [
         ("scipy:RK45", 1e-6, None, None), ("scipy:Radau", 1e-6, None, None)]
@@ -132,7 +133,7 @@ def test_scipy_work_precision_records(chain):
 
 # -- figures ----------------------------------------------------------------------------------
 def fake_records():
-    rec = analyze.WorkRecord
+    rec = measures.WorkRecord
     return [rec("rk4", 0.1, None, 10, None, 1e-3, 1e-4, True),
             rec("rk4", 0.05, None, 20, None, 6e-5, 2e-4, True),
             rec("euler", 0.1, None, 10, None, 1e-1, 5e-5, True),

@@ -1,7 +1,7 @@
 """``lagcodegen simulate`` and ``lagcodegen sweep``: files written, values, and errors; and the
-`lagcodegen.heatmap` helpers behind ``--heatmap`` on synthetic sweeps with known answers.
+`lagcodegen.analysis.heatmaps` helpers behind ``--heatmap`` on synthetic sweeps with known answers.
 
-The commands run in-process through ``lagcodegen.cli.main`` on tiny problems (the kernels
+The commands run in-process through ``lagcodegen.cli.commands.main`` on tiny problems (the kernels
 build into the session's private cache). Independent sources for the numbers:
 
 - final states: scipy's DOP853 at rtol = atol = 1e-12 on the same model (`solve_reference`);
@@ -23,12 +23,12 @@ import pytest
 import sympy as sp
 
 from lagcodegen import catalog
-from lagcodegen.cli import main
-from lagcodegen.cli_args import EXIT_FAILED, EXIT_USAGE, parse_axis
-from lagcodegen.heatmap import first_crossing_time, plot_heatmap
+from lagcodegen.analysis.heatmaps import first_crossing_time, plot_heatmap
+from lagcodegen.cli.arguments import EXIT_FAILED, EXIT_USAGE, parse_axis
+from lagcodegen.cli.commands import main
 from lagcodegen.pipeline import compile_model
-from lagcodegen.simulate import Status, solve_reference
-from lagcodegen.sweep import SweepResult
+from lagcodegen.run.simulate import Status, solve_reference
+from lagcodegen.run.sweep import SweepResult
 
 pytestmark = pytest.mark.compiler
 
@@ -197,7 +197,7 @@ def test_sweep_table_and_failures(tmp_path, capsys):
 def test_sweep_reports_a_failed_chunk_and_exits_non_zero(tmp_path, capsys, monkeypatch):
     """A chunk that raises (a lost worker, a bug) used to be summed up as an interruption: now the
     command names the members and the error, counts them apart from members not run, and exits 1."""
-    import lagcodegen.sweep as sweep_module
+    import lagcodegen.run.sweep as sweep_module
 
     def failing_call(job, xs, ps, out):
         raise MemoryError("out of memory in chunk")

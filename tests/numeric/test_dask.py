@@ -1,10 +1,10 @@
-"""`lagcodegen.sweep` on a ``dask.distributed`` cluster, and how workers get the kernel.
+"""`lagcodegen.run.sweep` on a ``dask.distributed`` cluster, and how workers get the kernel.
 
 Independent source: the same sweep on local threads (`test_sweep.py` checks those members
 against `simulate` run alone). Cluster and local runs call the same C function on the same
 inputs, so every array must agree bitwise.
 
-A worker unpickles the `CompiledSystem` through ``lagcodegen.build._restore``: it imports the
+A worker unpickles the `CompiledSystem` through ``lagcodegen.native.build._restore``: it imports the
 ``.so`` at the pickled path, or, on a machine where that path does not exist, rebuilds the
 kernel from the pickled C sources with `build_module` (into the worker's own cache). The
 second case is checked in-process with an isolated ``LAGCODEGEN_CACHE_DIR``.
@@ -19,10 +19,10 @@ import numpy as np
 import pytest
 from numpy.testing import assert_array_equal
 
-from lagcodegen.build import BuildError, _restore
-from lagcodegen.simulate import simulate
-import lagcodegen.sweep as sweep_module
-from lagcodegen.sweep import CHUNK_FAILED, SweepWarning, sweep
+import lagcodegen.run.sweep as sweep_module
+from lagcodegen.native.build import BuildError, _restore
+from lagcodegen.run.simulate import simulate
+from lagcodegen.run.sweep import CHUNK_FAILED, SweepWarning, sweep
 
 pytestmark = pytest.mark.compiler
 
@@ -164,7 +164,7 @@ def test_a_killed_worker_keeps_the_other_chunks(pendulum, distributed):
 
         import numpy as np_
 
-        import lagcodegen.sweep as module
+        import lagcodegen.run.sweep as module
         real_call = module._call
 
         def call(job, xs, ps, out):

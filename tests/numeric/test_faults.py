@@ -13,9 +13,10 @@ import pytest
 import sympy as sp
 import sympy.physics.mechanics as me
 
-from lagcodegen import Model, schemes
+from lagcodegen import Model
+from lagcodegen.integrators import schemes
 from lagcodegen.pipeline import compile_model
-from lagcodegen.simulate import SimulationError, StabilityWarning, Status, simulate
+from lagcodegen.run.simulate import SimulationError, StabilityWarning, Status, simulate
 
 IMPLICIT = ("implicit_midpoint", "backward_euler", "sdirk2", "radau_iia3")
 CHAIN_X0 = (0.1, 0.05, -0.05, 0.0, 0.0, 0.0)
@@ -203,7 +204,7 @@ def test_a_method_not_compiled_in_is_rejected(chain_fixed_K):
 
 def _kernel(system, suffix, x, params, size):
     """``lcg_<model>_<suffix>(t, x, p, out)`` -> (status, out)."""
-    from lagcodegen.simulate import parameter_vector
+    from lagcodegen.run.simulate import parameter_vector
 
     x = np.ascontiguousarray(x, dtype=np.float64)
     p = np.ascontiguousarray(parameter_vector(system, params), dtype=np.float64)

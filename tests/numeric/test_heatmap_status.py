@@ -12,9 +12,9 @@ import matplotlib
 import numpy as np
 import pytest
 
-from lagcodegen.heatmap import plot_heatmap
-from lagcodegen.simulate import Status
-from lagcodegen.sweep import CHUNK_FAILED, NOT_RUN, sweep
+from lagcodegen.analysis.heatmaps import plot_heatmap
+from lagcodegen.run.simulate import Status
+from lagcodegen.run.sweep import CHUNK_FAILED, NOT_RUN, sweep
 
 pytestmark = pytest.mark.compiler
 

@@ -23,8 +23,8 @@ import pytest
 import sympy as sp
 
 from lagcodegen import catalog
-from lagcodegen.cse import reduce_expressions
-from lagcodegen.emit import render_sources
+from lagcodegen.codegen.reduce import reduce_expressions
+from lagcodegen.codegen.render import render_sources
 from lagcodegen.model import TIME, Model
 
 # Models with holonomic constraints solve the augmented (first-kind) system instead of M ud = F and

@@ -19,10 +19,10 @@ import pytest
 import sympy as sp
 
 from lagcodegen import derive_equations
-from lagcodegen.build import build_module
-from lagcodegen.cse import DEFAULT_OUTPUTS, reduce_expressions
-from lagcodegen.emit import render_sources
+from lagcodegen.codegen.reduce import DEFAULT_OUTPUTS, reduce_expressions
+from lagcodegen.codegen.render import render_sources
 from lagcodegen.model import TIME, Model
+from lagcodegen.native.build import build_module
 
 STRICT = ["-std=c99", "-Wall", "-Wextra", "-Wpedantic", "-Werror"]
 PLAIN = ("plain_pendulum", ("a", "b"), ("m1", "m2", "l1", "l2", "g"), ("bob1", "bob2"))
@@ -65,7 +65,7 @@ def pendulum(model_name, coordinates, parameters, points) -> Model:
                  parameter_values={m1: 1.0, m2: 2.0, l1: 1.5, l2: 0.7, g: 9.81})
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def reduced(case):
     """Derived and CSE'd once per case (cases are tuples of strings)."""
     _, model_name, coordinates, parameters, points = case
@@ -221,7 +221,7 @@ LONG = {"1": "a", "63": "a" * 63, "64": "a" * 64, "250": "a" * 250, "punct50": "
 
 @pytest.mark.parametrize("name", list(LONG.values()), ids=list(LONG))
 def test_mangle_is_bounded_safe_and_deterministic(name):
-    from lagcodegen.printer import RESERVED_NAMES, mangle
+    from lagcodegen.codegen.printer import RESERVED_NAMES, mangle
 
     out = mangle(name)
     assert re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", out) and len(out) <= 63
@@ -234,7 +234,7 @@ def test_mangle_is_bounded_safe_and_deterministic(name):
 
 
 def test_mangle_keeps_short_names_and_separates_long_ones():
-    from lagcodegen.printer import mangle
+    from lagcodegen.codegen.printer import mangle
 
     assert mangle("a" * 63) == "a" * 63  # at the limit: unchanged, as before the bound
     assert mangle("a" * 64).startswith("a" * 54 + "_") and len(mangle("a" * 64)) == 63
@@ -284,7 +284,7 @@ def test_models_differing_after_the_cut_get_different_prefixes():
 
 @pytest.mark.compiler
 def test_cli_emit_writes_bounded_file_names(tmp_path, capsys):
-    from lagcodegen.cli import main
+    from lagcodegen.cli.commands import main
 
     model_file = tmp_path / "long_model.py"
     model_file.write_text(

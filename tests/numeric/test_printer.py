@@ -13,7 +13,7 @@ import subprocess
 import pytest
 import sympy as sp
 
-from lagcodegen.printer import CPrinter, mangle
+from lagcodegen.codegen.printer import CPrinter, mangle
 
 GCC = shutil.which("gcc")
 needs_gcc = pytest.mark.skipif(GCC is None, reason="gcc not installed")

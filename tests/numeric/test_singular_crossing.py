@@ -32,11 +32,11 @@ import sympy.physics.mechanics as me
 from scipy.integrate import solve_ivp
 
 from lagcodegen import catalog, derive_equations
+from lagcodegen.integrators.schemes import KIND_EXPLICIT, SCHEMES, get_scheme
 from lagcodegen.model import Model
 from lagcodegen.pipeline import compile_model
-from lagcodegen.schemes import KIND_EXPLICIT, SCHEMES, get_scheme
-from lagcodegen.simulate import Status, make_rhs, simulate
-from lagcodegen.sweep import sweep
+from lagcodegen.run.simulate import Status, make_rhs, simulate
+from lagcodegen.run.sweep import sweep
 
 pytestmark = pytest.mark.compiler
 

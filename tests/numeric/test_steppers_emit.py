@@ -17,12 +17,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from lagcodegen import catalog, pipeline, stepper_context
-from lagcodegen.cse import reduce_expressions
-from lagcodegen.derive import derive_equations
-from lagcodegen.emit import render_sources
-from lagcodegen.stepper_context import needed_stages
-from lagcodegen.tableaux import ButcherTableau, get_tableau
+from lagcodegen import catalog, pipeline
+from lagcodegen.codegen import steppers
+from lagcodegen.codegen.reduce import reduce_expressions
+from lagcodegen.codegen.render import render_sources
+from lagcodegen.codegen.steppers import needed_stages
+from lagcodegen.integrators.tableaux import ButcherTableau, get_tableau
+from lagcodegen.symbolic.derive import derive_equations
 
 
 def _stepper_source(source: str, prefix: str, method: str) -> str:
@@ -67,7 +68,7 @@ def test_small_dynamics_is_inlined_and_large_is_called(double_pendulum_system):
     assert "static LCG_HOT_INLINE int lcg_double_pendulum_dynamics_hot(" in small.source
     assert "lcg_double_pendulum_dynamics_hot(" in _stepper_source(small.source, "lcg_double_pendulum", "rk4")
     chain = reduce_expressions(derive_equations(catalog.pendulum_chain(6)), ["rhs"], None)
-    assert chain.kernel("dynamics").ops_after > stepper_context.HOT_DYNAMICS_MAX_OPS
+    assert chain.kernel("dynamics").ops_after > steppers.HOT_DYNAMICS_MAX_OPS
     large = render_sources(chain, methods=["rk4"])
     assert "LCG_HOT_INLINE" not in large.source
     assert "_dynamics_hot" not in large.source
@@ -76,18 +77,18 @@ def test_small_dynamics_is_inlined_and_large_is_called(double_pendulum_system):
 def test_inlined_stages_give_the_same_numbers_as_calls(monkeypatch, tmp_path):
     """The same steps with the dynamics inlined and called: equal to rounding (the reference
     is the called build, whose RK4 the order tests check against DOP853)."""
-    from lagcodegen.simulate import simulate
+    from lagcodegen.run.simulate import simulate
 
     model = catalog.double_pendulum()
     x0 = {"q1": 1.0, "q2": 0.5, "q1_d": 0.0, "q2_d": 0.0}
     runs = {}
-    for hot_limit in (stepper_context.HOT_DYNAMICS_MAX_OPS, -1):
-        monkeypatch.setattr(stepper_context, "HOT_DYNAMICS_MAX_OPS", hot_limit)
+    for hot_limit in (steppers.HOT_DYNAMICS_MAX_OPS, -1):
+        monkeypatch.setattr(steppers, "HOT_DYNAMICS_MAX_OPS", hot_limit)
         system = pipeline.compile_model(model, methods=["rk4", "dopri5"], cache_dir=tmp_path / f"limit{hot_limit}")
         source = (system.path.parent / f"{system.layout.prefix}.c").read_text()
         assert ("_dynamics_hot" in source) == (hot_limit >= 0)
         runs[hot_limit] = [simulate(system, x0, t_end=2.0, h=1e-2, method=m).x for m in ("rk4", "dopri5")]
-    for inlined, called in zip(runs[stepper_context.HOT_DYNAMICS_MAX_OPS], runs[-1]):
+    for inlined, called in zip(runs[steppers.HOT_DYNAMICS_MAX_OPS], runs[-1]):
         np.testing.assert_allclose(inlined, called, rtol=1e-13, atol=1e-13)
 
 
@@ -125,7 +126,7 @@ def test_code_digest_covers_every_module_and_template(tmp_path):
 
 def test_template_dir_is_found_from_the_package_and_missing_templates_are_named(monkeypatch, tmp_path):
     import lagcodegen
-    from lagcodegen.emit import template_dir
+    from lagcodegen.codegen.render import template_dir
 
     assert (template_dir() / "model.c.j2").is_file()
     monkeypatch.setattr(lagcodegen, "__file__", str(tmp_path / "src" / "lagcodegen" / "__init__.py"))
@@ -134,7 +135,7 @@ def test_template_dir_is_found_from_the_package_and_missing_templates_are_named(
 
 
 def test_package_digest_reads_the_installed_package():
-    from lagcodegen.emit import template_dir
+    from lagcodegen.codegen.render import template_dir
 
     assert pipeline._package_digest() == pipeline.code_digest(Path(pipeline.__file__).resolve().parent,
                                                               template_dir())
@@ -147,7 +148,7 @@ def test_build_parts_define_every_exported_function_once(model, tmp_path, requir
     exactly once, and part 0 (the default, the embedded build) defines all of them."""
     import subprocess
 
-    from lagcodegen.schemes import DEFAULT_METHODS
+    from lagcodegen.integrators.schemes import DEFAULT_METHODS
 
     gcc, nm_tool = require_tool("gcc"), require_tool("nm")
     eom = derive_equations(getattr(catalog, model)())

@@ -1,6 +1,6 @@
-"""`lagcodegen.sweep`: many members through one compiled kernel, checked member by member.
+"""`lagcodegen.run.sweep`: many members through one compiled kernel, checked member by member.
 
-Independent source of every expected value: `lagcodegen.simulate.simulate` run alone with the
+Independent source of every expected value: `lagcodegen.run.simulate.simulate` run alone with the
 member's values. Every test runs against both C kernels of `sweep`: the scalar one drives the
 same generated C step function (``lcg_<m>_step_any``) as `simulate`; the lane-group kernel, built
 here with libm's sin/cos (``lane_trig="libm"``), evaluates the same printed expressions and stage
@@ -24,9 +24,9 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose, assert_array_equal
 
-import lagcodegen.sweep as sweep_module
-from lagcodegen.simulate import Status, simulate
-from lagcodegen.sweep import CHUNK_FAILED, NOT_RUN, ChunkError, SweepWarning, sweep
+import lagcodegen.run.sweep as sweep_module
+from lagcodegen.run.simulate import Status, simulate
+from lagcodegen.run.sweep import CHUNK_FAILED, NOT_RUN, ChunkError, SweepWarning, sweep
 
 pytestmark = pytest.mark.compiler
 

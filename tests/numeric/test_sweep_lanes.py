@@ -1,4 +1,4 @@
-"""The lane-group sweep kernel (``lcg_<m>_sweep_lanes``, `lanes.py`) against the scalar one.
+"""The lane-group sweep kernel (``lcg_<m>_sweep_lanes``, `lane_kernel.py`) against the scalar one.
 
 Independent source of every expected value: the scalar kernel ``lcg_<m>_sweep`` of the same
 build (members one after another, libm's sin/cos), itself checked against `simulate` in
@@ -14,9 +14,9 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose, assert_array_equal
 
-from lagcodegen.lanes import DEFAULT_LANES
-from lagcodegen.simulate import Status
-from lagcodegen.sweep import sweep
+from lagcodegen.codegen.lane_kernel import DEFAULT_LANES
+from lagcodegen.run.simulate import Status
+from lagcodegen.run.sweep import sweep
 
 pytestmark = pytest.mark.compiler
 

@@ -18,8 +18,8 @@ import numpy as np
 import pytest
 import scipy.linalg
 
-from lagcodegen import schemes
-from lagcodegen.simulate import simulate
+from lagcodegen.integrators import schemes
+from lagcodegen.run.simulate import simulate
 
 LONG = [100_000, pytest.param(1_000_000, marks=pytest.mark.slow, id="1e6")]
 SAMPLES = 1000
@@ -41,7 +41,7 @@ class Drift:
     tenth_means: np.ndarray  # mean dE over each tenth of the run, (10,)
 
     @classmethod
-    def of(cls, traj) -> "Drift":
+    def of(cls, traj) -> Drift:
         dE = traj.energy - traj.energy[0]
         tenths = np.array_split(dE, 10)
         return cls(duration=float(traj.t[-1] - traj.t[0]), first=float(np.max(np.abs(tenths[0]))),

@@ -27,10 +27,11 @@ import scipy.linalg
 import sympy as sp
 import sympy.physics.mechanics as me
 
-from lagcodegen import Model, schemes
+from lagcodegen import Model
+from lagcodegen.integrators import schemes
+from lagcodegen.integrators.tableaux import Z
 from lagcodegen.pipeline import compile_model
-from lagcodegen.simulate import StabilityWarning, Status, simulate
-from lagcodegen.tableaux import Z
+from lagcodegen.run.simulate import StabilityWarning, Status, simulate
 
 EXPLICIT_RK = tuple(m for m in schemes.DEFAULT_METHODS
                     if schemes.get_scheme(m).stepper == schemes.KIND_EXPLICIT)

@@ -10,8 +10,9 @@ from __future__ import annotations
 
 import dataclasses
 from fractions import Fraction
-from functools import lru_cache
+from functools import cache
 
+import pytest
 import sympy as sp
 import sympy.physics.mechanics as me
 from hypothesis import HealthCheck, given, settings
@@ -31,7 +32,6 @@ def chain_symbols(n: int):
     return m, l, sp.Symbol("g", positive=True), c
 
 
-@lru_cache(maxsize=None)
 def ours(n: int, route: str, damped: bool):
     """lagcodegen's equations of the catalog chain, with joint damping as generalized forces."""
     model = catalog.pendulum_chain(n, route)
@@ -46,7 +46,7 @@ def ours(n: int, route: str, damped: bool):
     return derive_equations(model)
 
 
-@lru_cache(maxsize=None)
+@cache
 def sympys(n: int, damped: bool):
     """sympy's LagrangesMethod for the same chain, built independently: (M, F, q, qd)."""
     m, l, g, c = chain_symbols(n)
@@ -107,9 +107,16 @@ def solve(M, F, table) -> sp.Matrix:
     return Mx.LUsolve(Fx).evalf(DIGITS)
 
 
+@pytest.fixture(scope="module")
+def derived():
+    """`ours`, cached per test session (not per process: a mutation run forks its test runs from
+    one process, and a cache filled before the fork would hide every mutant of the derivation)."""
+    return cache(ours)
+
+
 @settings(max_examples=15, deadline=None, database=None, suppress_health_check=[HealthCheck.too_slow])
-@given(chains())
-def test_chain_accelerations_match_sympy_lagranges_method(chain):
+@given(chain=chains())
+def test_chain_accelerations_match_sympy_lagranges_method(chain, derived):
     n, damped = chain["n"], chain["damping"] is not None
     m, l, g, c = chain_symbols(n)
     values = {**dict(zip(m, map(exact, chain["masses"]))), **dict(zip(l, map(exact, chain["lengths"]))),
@@ -118,7 +125,7 @@ def test_chain_accelerations_match_sympy_lagranges_method(chain):
         values.update(zip(c, map(exact, chain["damping"])))
     angles, rates = list(map(exact, chain["angles"])), list(map(exact, chain["rates"]))
 
-    eom = ours(n, chain["route"], damped)
+    eom = derived(n, chain["route"], damped)
     got = solve(eom.mass_matrix, eom.forcing,
                 {**values, **dict(zip(eom.q, angles)), **dict(zip(eom.u, rates))})
 

@@ -17,7 +17,7 @@ import sympy.physics.mechanics as me
 
 from lagcodegen import Model, derive_equations
 from lagcodegen.pipeline import compile_model
-from lagcodegen.simulate import simulate
+from lagcodegen.run.simulate import simulate
 
 t = me.dynamicsymbols._t
 m, k, c = sp.symbols("m k c", positive=True)

@@ -1,4 +1,4 @@
-"""Equilibria and linearized models (`lagcodegen.statics`) against closed forms.
+"""Equilibria and linearized models (`lagcodegen.statics.equilibria`) against closed forms.
 
 Sources:
 [LL] Landau & Lifshitz, Mechanics, 3rd ed.: sec. 5 Problem 4 (Lagrangian of the governor: two
@@ -17,8 +17,7 @@ import sympy as sp
 import sympy.physics.mechanics as me
 
 from lagcodegen import Model, catalog, derive_equations
-from lagcodegen.statics import (LinearModel, angle_like, equilibrium_conditions, find_equilibria,
-                                linearize)
+from lagcodegen.statics.equilibria import LinearModel, angle_like, equilibrium_conditions, find_equilibria, linearize
 
 ROUTES = ("energies", "bodies")
 

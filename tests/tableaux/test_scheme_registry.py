@@ -11,8 +11,8 @@ import itertools
 
 import pytest
 
-from lagcodegen import schemes
-from lagcodegen.schemes import SCHEMES, get_scheme, required_outputs
+from lagcodegen.integrators import schemes
+from lagcodegen.integrators.schemes import SCHEMES, get_scheme, required_outputs
 
 EXPLICIT = ("euler", "heun", "midpoint", "kutta3", "rk4", "rk38", "dopri5")
 IMPLICIT = ("backward_euler", "implicit_midpoint", "sdirk2", "radau_iia3")

@@ -15,10 +15,23 @@ import pytest
 import scipy.optimize
 import sympy as sp
 
-from lagcodegen.rooted_trees import TAU, RootedTree, trees_of_order, trees_up_to
-from lagcodegen.tableaux import (
-    BACKWARD_EULER, DOPRI5, EULER, HEUN, IMPLICIT_MIDPOINT, KUTTA3, MIDPOINT_EXPLICIT, RADAU_IIA3,
-    RK4, RK38, SDIRK2, TABLEAUX, Z, ButcherTableau, get_tableau,
+from lagcodegen.integrators.order_conditions import TAU, RootedTree, trees_of_order, trees_up_to
+from lagcodegen.integrators.tableaux import (
+    BACKWARD_EULER,
+    DOPRI5,
+    EULER,
+    HEUN,
+    IMPLICIT_MIDPOINT,
+    KUTTA3,
+    MIDPOINT_EXPLICIT,
+    RADAU_IIA3,
+    RK4,
+    RK38,
+    SDIRK2,
+    TABLEAUX,
+    ButcherTableau,
+    Z,
+    get_tableau,
 )
 
 ALL = pytest.mark.parametrize("tab", list(TABLEAUX.values()), ids=list(TABLEAUX))

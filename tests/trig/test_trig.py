@@ -15,8 +15,8 @@ import mpmath
 import numpy as np
 import pytest
 
-from lagcodegen.build import DEFAULT_FLAGS
-from lagcodegen.emit import trig_source
+from lagcodegen.codegen.render import trig_source
+from lagcodegen.native.build import DEFAULT_FLAGS
 
 pytestmark = pytest.mark.compiler
 
@@ -148,7 +148,7 @@ def test_beyond_the_limit_nan_and_infinities_are_libm(trig, rng):
 
 
 def test_trig_source_rejects_unknown_precision():
-    from lagcodegen.emit import EmitError
+    from lagcodegen.codegen.render import EmitError
 
     with pytest.raises(EmitError, match="precision"):
         trig_source("half")

@@ -1,0 +1,1 @@
+"""Stage analysis: Trajectory / SweepResult -> numbers, then figures."""

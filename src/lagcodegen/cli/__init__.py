@@ -1,0 +1,1 @@
+"""Stage cli: the `lagcodegen` command (argument parsing apart from the commands)."""

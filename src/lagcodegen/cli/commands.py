@@ -1,0 +1,258 @@
+"""Command line: lagcodegen <command>; lagcodegen --help lists the commands.
+
+A MODEL argument is a catalog example name (lagcodegen examples) or a Python file that
+defines model (a lagcodegen.Model) or a function build_model() returning one.
+
+Errors print one line, "lagcodegen <command>: error: <message>", naming the culprit.
+Exit codes: 0 done, 1 the work failed (a run stopped early, a build failed), 2 a bad
+command line, 130 interrupted. --traceback (or LAGCODEGEN_DEBUG=1) shows the Python
+traceback instead, for developers.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import sympy as sp
+
+from .arguments import (
+    EXIT_BROKEN_PIPE,
+    EXIT_FAILED,
+    EXIT_INTERRUPTED,
+    EXIT_OK,
+    EXIT_USAGE,
+    Parser,
+    RunFailed,
+    UsageError,
+    join_negative_numbers,
+    load_model,
+    parse_assignments,
+    parse_names,
+)
+from .runs import add_run_commands
+
+
+def describe_example(name: str, builder, width: int = 88) -> str:
+    """One catalog example for ``lagcodegen examples``: name, the builder's whole description
+    (wrapped), its coordinates, and its parameters with their default values."""
+    model = builder()
+    doc = " ".join((builder.__doc__ or "").split()).replace("`", "")
+    values = {p.name: v for p, v in model.parameter_values.items()}
+    coordinates = ", ".join(str(q.func) if hasattr(q, "func") and q.args else str(q) for q in model.coordinates)
+    parameters = ", ".join(f"{p.name} = {values[p.name]:g}" if p.name in values else p.name
+                           for p in model.parameters)
+    indent = " " * 4
+    lines = [name, textwrap.fill(doc, width, initial_indent=indent, subsequent_indent=indent)]
+    lines += [textwrap.fill(f"{label}: {text or 'none'}", width, initial_indent=indent,
+                            subsequent_indent=indent * 2)
+              for label, text in (("coordinates", coordinates), ("parameters", parameters))]
+    return "\n".join(lines)
+
+
+def cmd_examples(args) -> int:
+    from ..catalog import EXAMPLES
+
+    print("\n\n".join(describe_example(name, builder) for name, builder in EXAMPLES.items()))
+    return EXIT_OK
+
+
+def cmd_derive(args) -> int:
+    """Print M and F one element a line (``M[i, j] = <expr>``, sympy syntax: sympify reads it
+    back), or as 2-D pictures with --pretty."""
+    from ..symbolic.derive import derive_equations
+
+    model = load_model(args.model)
+    start = time.perf_counter()
+    eom = derive_equations(model)
+    elapsed = time.perf_counter() - start
+    print(f"{eom.name}: {eom.route}, n = {eom.n}, derived in {elapsed:.3f} s")
+    print(f"coordinates q = {list(eom.q)}; speeds u = {list(eom.u)}; parameters {list(eom.parameters)}")
+    print("M(q, t) ud = F(q, u, t) with")
+    blocks = [("M", eom.mass_matrix), ("F", eom.forcing)] + [("T + V", eom.energy)] * (eom.energy is not None)
+    for label, value in blocks:
+        if args.pretty:
+            print(f"{label} =")
+            sp.pprint(value, use_unicode=False, wrap_line=False)
+        elif isinstance(value, sp.MatrixBase) and value.shape[1] == 1:
+            print("\n".join(f"{label}[{i}] = {sp.sstr(value[i])}" for i in range(value.shape[0])))
+        elif isinstance(value, sp.MatrixBase):
+            print("\n".join(f"{label}[{i}, {j}] = {sp.sstr(value[i, j])}"
+                            for i in range(value.shape[0]) for j in range(value.shape[1])))
+        else:
+            print(f"{label} = {sp.sstr(value)}")
+    return EXIT_OK
+
+
+def emit_request(args, eom) -> tuple[list, list, dict]:
+    """(outputs, methods, fixed) of ``lagcodegen emit``, every name checked."""
+    from ..codegen.reduce import DEFAULT_OUTPUTS, OUTPUT_KERNELS
+    from ..integrators.schemes import SCHEMES, required_outputs
+
+    methods = parse_names(args.methods, "--methods", tuple(SCHEMES))
+    if args.outputs is not None:
+        outputs = parse_names(args.outputs, "--outputs", tuple(OUTPUT_KERNELS))
+    else:
+        outputs = [o for o in DEFAULT_OUTPUTS if not (o == "energy" and eom.energy is None)
+                   and not (o == "jacobian" and eom.m)]
+        outputs += ["constraints", "multipliers"] if eom.m else []
+    outputs += [o for o in required_outputs(methods) if o not in outputs]
+    fixed = parse_assignments(args.fixed, "--fixed")
+    parameters = [p.name for p in eom.parameters]
+    for name in fixed:
+        if name not in parameters:
+            raise UsageError(f"--fixed: {name!r} is not a parameter of {eom.name}; "
+                             f"parameters: {', '.join(parameters) or 'none'}")
+    return outputs, methods, fixed
+
+
+def cmd_emit(args) -> int:
+    from ..codegen.reduce import reduce_expressions
+    from ..codegen.render import render_sources
+    from ..symbolic.derive import derive_equations
+
+    out = Path(args.out)
+    if not args.out.strip() or (out.exists() and not out.is_dir()):
+        raise UsageError(f"--out {args.out!r} must be a directory (it is created if missing)")
+    eom = derive_equations(load_model(args.model))
+    outputs, methods, fixed = emit_request(args, eom)
+    system = reduce_expressions(eom, outputs, fixed)
+    sources = render_sources(system, args.precision, methods=methods, trig=args.trig)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        (out / sources.header_name).write_text(sources.header)
+        (out / sources.source_name).write_text(sources.source)
+    except OSError as error:
+        raise UsageError(f"--out {args.out}: cannot write {error.filename}: {error.strerror}") from None
+    for kernel in system.kernels:
+        print(f"{kernel.name:12s} ops {kernel.ops_before:6d} before CSE, {kernel.ops_after:6d} after")
+    if system.fixed_parameters:
+        print(f"folding {len(system.fixed_parameters)} fixed parameter(s) saved {system.ops_saved_by_fixing} ops")
+    print(f"wrote {out / sources.header_name} and {out / sources.source_name}")
+    return EXIT_OK
+
+
+def cmd_demo(args) -> int:
+    """Derive, compile and simulate the double pendulum; compare with scipy's DOP853."""
+    import numpy as np
+
+    from ..catalog import double_pendulum
+    from ..pipeline import compile_model
+    from ..run.simulate import simulate, solve_reference
+    from ..symbolic.derive import derive_equations
+
+    start = time.perf_counter()
+    eom = derive_equations(double_pendulum())
+    print(f"double pendulum ({eom.route}), M(q) ud = F(q, u):")
+    sp.pprint(eom.mass_matrix, use_unicode=False, wrap_line=False)
+    sp.pprint(eom.forcing, use_unicode=False, wrap_line=False)
+    system = compile_model(eom, methods=("rk4", "implicit_midpoint"))
+    print(f"compiled {system.module_name} in {time.perf_counter() - start:.2f} s (cache: {system.path.parent})")
+    x0 = {"q1": 1.0, "q2": 0.5}
+    for method, h in (("rk4", 1e-3), ("implicit_midpoint", 1e-3)):
+        simulate(system, x0, 10.0, h, method).check()  # checks h against the stability limit
+        start = time.perf_counter()
+        run = simulate(system, x0, 10.0, h, method, energy=True, stride=100, check_stability=False)
+        elapsed = time.perf_counter() - start
+        drift = float(np.max(np.abs(run.energy - run.energy[0])))
+        print(f"{method:18s} h = {h:g}: 10 s in {elapsed * 1e3:.2f} ms, |dE| <= {drift:.2e}, "
+              f"final q = {run.x[-1, :2]}")
+    _, reference = solve_reference(system, [1.0, 0.5, 0.0, 0.0], [0.0, 10.0])
+    final = simulate(system, x0, 10.0, 1e-3, "rk4").x[-1]
+    print(f"rk4 final-state error against scipy DOP853 (rtol = atol = 1e-12): "
+          f"{float(np.max(np.abs(final - reference[-1]))):.2e}")
+    return EXIT_OK
+
+
+def make_parser() -> Parser:
+    parser = Parser(prog="lagcodegen", description=__doc__,
+                    formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--traceback", action="store_true",
+                        help="on an error, show the Python traceback (also: LAGCODEGEN_DEBUG=1)")
+    commands = parser.add_subparsers(dest="command", required=True, metavar="command")
+    commands.add_parser("examples", help="list the built-in textbook models").set_defaults(run=cmd_examples)
+    commands.add_parser("demo", help="derive, compile and simulate the double pendulum").set_defaults(run=cmd_demo)
+    derive = commands.add_parser("derive", help="derive and print M(q,t) ud = F(q,u,t)")
+    derive.add_argument("model", help="example name or model file")
+    derive.add_argument("--pretty", action="store_true",
+                        help="2-D pictures instead of one sympy expression per element")
+    derive.set_defaults(run=cmd_derive)
+    emit = commands.add_parser("emit", help="write the standalone C header and source of a model")
+    emit.add_argument("model", help="example name or model file")
+    emit.add_argument("--out", default=".", help="output directory, created if missing (default: .)")
+    emit.add_argument("--precision", choices=("double", "float"), default="double")
+    emit.add_argument("--trig", choices=("libm", "inline"), default="libm",
+                      help="sin/cos as libm calls (default) or inline polynomials (below 1 ulp, templates/trig.c.j2)")
+    emit.add_argument("--outputs", help="comma-separated subset of mass_matrix,forcing,accel,rhs,energy,"
+                      "points,jacobian,momentum (default: all that apply)")
+    emit.add_argument("--methods", help="comma-separated integrators to include as step functions, "
+                      "e.g. rk4,symplectic_euler,implicit_midpoint (the outputs they need are added)")
+    emit.add_argument("--fixed", action="append", metavar="NAME=VALUE",
+                      help="fold a parameter into the code (repeatable, or comma-separated)")
+    emit.set_defaults(run=cmd_emit)
+    add_run_commands(commands)
+    return parser
+
+
+def classify(error: Exception) -> tuple[int, str] | None:
+    """(exit code, one-line message) of an error the command line reports, or None for the rest
+    (bugs keep their traceback)."""
+    from ..native.build import BuildError
+    from ..run.simulate import SimulationError
+
+    if isinstance(error, UsageError):
+        return EXIT_USAGE, str(error)
+    if isinstance(error, KeyError):  # str() of a KeyError adds quotes around its message
+        return EXIT_USAGE, str(error.args[0] if error.args else error)
+    if isinstance(error, ValueError):  # the library's checks (ModelError, KernelError, ...) name the culprit
+        return EXIT_USAGE, str(error)
+    if isinstance(error, OSError) and not isinstance(error, BrokenPipeError):  # a file the user named
+        return EXIT_USAGE, f"{error.filename}: {error.strerror}" if error.filename else str(error)
+    if isinstance(error, MemoryError):
+        return EXIT_FAILED, f"out of memory: {error or 'MemoryError'}"
+    if isinstance(error, (RunFailed, BuildError, SimulationError)):
+        return EXIT_FAILED, str(error)
+    return None
+
+
+def run_command(argv) -> int:
+    """Parse and run; every reported error becomes one line on stderr, ``lagcodegen <command>:
+    error: <message>``, and an exit code (see the module doc)."""
+    argv = join_negative_numbers(argv)
+    debug = "--traceback" in argv or os.environ.get("LAGCODEGEN_DEBUG", "").strip() not in ("", "0")
+    prog = "lagcodegen"
+    try:
+        args = make_parser().parse_args(argv)
+        prog = f"lagcodegen {args.command}"
+        return args.run(args)
+    except Exception as error:  # re-raised below unless classify() knows it as a reported error
+        verdict = classify(error)
+        if verdict is None or debug:
+            raise
+        code, message = verdict
+        print(f"{getattr(error, 'prog', None) or prog}: error: {message}", file=sys.stderr)
+        return code
+
+
+def main(argv=None) -> int:
+    """Entry point of ``lagcodegen``: returns the exit code (see the module doc)."""
+    try:
+        return run_command(sys.argv[1:] if argv is None else list(argv))
+    except KeyboardInterrupt:
+        print("\ninterrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    except BrokenPipeError:
+        # The reader closed stdout (`lagcodegen derive X | head`): exit quietly. Point stdout at
+        # devnull so the flush at interpreter exit does not raise again (Python docs, "Note on SIGPIPE").
+        try:
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        except (OSError, ValueError, AttributeError):  # stdout is not a real file (e.g. captured in tests)
+            pass
+        return EXIT_BROKEN_PIPE
+
+
+if __name__ == "__main__":
+    sys.exit(main())

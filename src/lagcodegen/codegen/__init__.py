@@ -1,0 +1,1 @@
+"""Stage codegen: EquationsOfMotion -> ReducedSystem -> CSources (reduce, print, render)."""

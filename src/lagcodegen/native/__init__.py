@@ -1,0 +1,1 @@
+"""Stage native: CSources -> CompiledSystem (compile with cffi, cache on disk)."""

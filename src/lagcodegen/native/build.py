@@ -1,0 +1,315 @@
+"""Stage: CSources -> CompiledSystem (cffi API mode, out of line, cached on disk).
+
+``build_module`` writes the generated ``.h``/``.c`` into a private directory inside the
+cache dir, compiles them with ``ffibuilder.compile`` together with cffi's wrapper, and
+installs the directory with one ``os.replace`` (see ``cache.py``). The key covers
+everything that changes the binary: C text, cdef, flags, compiler, Python, cffi and
+lagcodegen versions, like cffi's ``Verifier`` and numba's index key. Every load of an entry,
+in this process or in a worker that unpickles a `CompiledSystem`, first checks the entry's
+recorded sha256 sums (``cache.entry_problem``): a tampered ``.so`` is rebuilt, never opened.
+A cache dir that cannot take the build (read-only, full) gives way to a temporary one with a
+warning (``cache.fallback_dir``); a build estimated to be expensive warns first (``build_cost``).
+"""
+from __future__ import annotations
+
+import contextlib
+import functools
+import importlib.util
+import os
+import re
+import shlex
+import shutil
+import subprocess
+import sys
+import sysconfig
+import threading
+import types
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import cffi
+
+from .. import __version__
+from ..codegen.printer import mangle
+from ..codegen.render import CSources, KernelLayout
+from . import cache
+from .build_cost import BuildCost, warn_if_expensive
+from .compiler import BuildError, check_python_headers, compile_error, compile_in_parallel, start_kernel_compile, stop
+
+__all__ = ["BuildError", "CompiledSystem", "build_module", "compiler_available", "DEFAULT_FLAGS"]
+
+# A cdef naming a function the header does not declare fails to compile (with gcc's message)
+# instead of producing a module that cannot be imported.
+# -O3 unrolls the stage loops; -fno-math-errno lets gcc fuse sin and cos of one angle into sincos
+# (the kernels never read errno, and IEEE results are unchanged)
+DEFAULT_FLAGS = ("-O3", "-std=c99", "-fno-math-errno", "-Werror=implicit-function-declaration")
+_INSTALL_HINT = ("install gcc, e.g. apt-get install gcc / build-essential, "
+                 "or set CC to a working C compiler")
+_EXT_SUFFIX = sysconfig.get_config_var("EXT_SUFFIX") or ".so"
+_FILE_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]*")
+_LOCK = threading.RLock()  # one build at a time per process: cffi chdirs while compiling
+_MEMO: dict[tuple[str, str], tuple[Any, Any, Path]] = {}  # (cache dir, key) -> (ffi, lib, .so)
+_LOADED: dict[str, types.ModuleType] = {}  # .so path -> module: checked and imported once per process
+
+
+@dataclass(frozen=True)
+class CompiledSystem:
+    """A loaded kernel module: cffi ``ffi`` and ``lib``, and where it came from.
+
+    Pickles as (key, path, module name, layout); unpickling re-imports the ``.so`` from
+    ``path`` (once per process), so worker processes get a usable ``lib``.
+    """
+
+    ffi: Any = field(repr=False, compare=False)
+    lib: Any = field(repr=False, compare=False)
+    key: str
+    path: Path
+    module_name: str
+    layout: KernelLayout
+    sources: CSources | None = field(default=None, repr=False, compare=False)
+    #: (sources, cache_dir, extra_compile_args) of the same model with the lane sweep kernel,
+    #: built on first use by `lane_variant` (it doubles the compile time, and only sweeps need it)
+    lane_build: tuple | None = field(default=None, repr=False, compare=False)
+
+    def __reduce__(self):
+        return (_restore, (self.key, str(self.path), self.module_name, self.layout, self.sources, self.lane_build))
+
+    def lane_variant(self) -> CompiledSystem | None:
+        """The same model built with the lane sweep kernel (compiled once, then cached), or None."""
+        if self.lane_build is None:
+            return None
+        sources, cache_dir, extra_compile_args = self.lane_build
+        return build_module(sources, cache_dir=cache_dir, extra_compile_args=extra_compile_args)
+
+
+def _restore(key: str, path: str, module_name: str, layout: KernelLayout,
+             sources: CSources | None = None, lane_build: tuple | None = None) -> CompiledSystem:
+    so = Path(path)
+    problem = None if path in _LOADED else cache.entry_problem(so.parent, key, so.name)
+    if problem is not None:
+        # another machine (a Dask worker), or a damaged entry: build again (with the default
+        # flags: the pickle does not carry extra ones) or say why not
+        if sources is not None:
+            return replace(build_module(sources), lane_build=lane_build)
+        state = "no longer exists" if problem == "missing" else f"cannot be loaded (entry: {problem})"
+        raise BuildError(f"compiled module {path} of model {layout.model!r} {state}; call build_module again")
+    module = _import(path, module_name)
+    return CompiledSystem(module.ffi, module.lib, key, so, module_name, layout, sources, lane_build)
+
+
+def _import(path: str, module_name: str) -> types.ModuleType:
+    """Import the extension at ``path`` (never via sys.path or the current directory), once per
+    process. Callers check the entry (``cache.entry_problem``) before the first import."""
+    if path not in _LOADED:
+        spec = importlib.util.spec_from_file_location(module_name, path)
+        if spec is None or spec.loader is None:
+            raise ImportError(f"{path} is not an importable extension module")
+        module = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(module)
+        _LOADED[path] = module
+    return _LOADED[path]
+
+
+def _compiler_command(compiler: str | None) -> list[str]:
+    text = compiler or os.environ.get("CC") or sysconfig.get_config_var("CC") or "cc"
+    return shlex.split(text)
+
+
+@functools.cache
+def _compiler_identity(command: tuple[str, ...]) -> str:
+    """``<command>: <first line of --version>``; BuildError with an install hint if it cannot run."""
+    shown = shlex.join(command)
+    try:
+        run = subprocess.run([*command, "--version"], capture_output=True, text=True, timeout=60)
+    except (OSError, subprocess.TimeoutExpired) as exc:
+        raise BuildError(f"no working C compiler: `{shown}` could not be run ({exc}); "
+                         f"{_INSTALL_HINT}", command=shown) from None
+    lines = (run.stdout or run.stderr).strip().splitlines()
+    if run.returncode != 0 or not lines:
+        raise BuildError(f"no working C compiler: `{shown} --version` failed; {_INSTALL_HINT}",
+                         command=shown, stderr=run.stderr)
+    return f"{shown}: {lines[0]}"
+
+
+def compiler_available(compiler: str | None = None) -> bool:
+    """True if the C compiler runs and Python's headers (``Python.h``) are installed."""
+    try:
+        _compiler_identity(tuple(_compiler_command(compiler)))
+    except BuildError:
+        return False
+    return (Path(sysconfig.get_paths()["include"]) / "Python.h").is_file()
+
+
+@contextlib.contextmanager
+def _compiler_env(compiler: str | None):
+    """distutils reads the compiler from ``$CC``; set it for the duration of one build."""
+    if compiler is None:
+        yield
+        return
+    saved = os.environ.get("CC")
+    os.environ["CC"] = compiler
+    try:
+        yield
+    finally:
+        if saved is None:
+            os.environ.pop("CC", None)
+        else:
+            os.environ["CC"] = saved
+
+
+def _check_names(sources: CSources, module_name: str) -> None:
+    for attr, ext in (("header_name", ".h"), ("source_name", ".c")):
+        name = getattr(sources, attr)
+        if not _FILE_NAME.fullmatch(name) or not name.endswith(ext) or name == module_name + ".c":
+            raise BuildError(f"CSources.{attr} {name!r} must be a plain file name ending in {ext}")
+
+
+def _key(sources: CSources, flags: list[str], identity: str) -> str:
+    return cache.source_key({
+        "header_name": sources.header_name, "header": sources.header,
+        "source_name": sources.source_name, "source": sources.source, "cdef": sources.cdef,
+        "flags": shlex.join(flags), "compiler": identity,
+        "python": f"{sys.implementation.cache_tag}-{sysconfig.get_platform()}{_EXT_SUFFIX}",
+        "cffi": cffi.__version__, "lagcodegen": __version__,
+    })
+
+
+@dataclass(frozen=True)
+class _Job:
+    """One build request: what `_fetch` and `_compile_entry` need besides the cache root."""
+
+    sources: CSources
+    key: str
+    module_name: str
+    flags: tuple
+    command: tuple
+    compiler: str | None
+    cost: BuildCost | None
+
+    @property
+    def so_name(self) -> str:
+        return self.module_name + _EXT_SUFFIX
+
+
+def build_module(sources: CSources, *, cache_dir=None, extra_compile_args=(), compiler=None,
+                 cost: BuildCost | None = None) -> CompiledSystem:
+    """Compile (or fetch from the cache) and load the C kernels of one model.
+
+    Parameters
+    ----------
+    sources : CSources
+        Output of ``render.render_sources``.
+    cache_dir : path, optional
+        Overrides ``$LAGCODEGEN_CACHE_DIR`` and the user cache dir.
+    extra_compile_args : sequence of str
+        Appended to :data:`DEFAULT_FLAGS`; part of the key.
+    compiler : str, optional
+        Compiler command (default ``$CC``, else Python's configured compiler); part of the key.
+    cost : BuildCost, optional
+        Estimated compile cost (``build_cost.estimate_build_cost``); when the module has to be
+        compiled and the estimate is high, a ``BuildCostWarning`` says so first.
+
+    Raises
+    ------
+    BuildError
+        No compiler, no Python headers, or the C does not compile: the message holds the
+        compiler's errors and the path of the kept ``.c``.
+    cache.CacheDirError
+        ``cache_dir`` was given and cannot be used. Without it, an unusable cache dir gives way
+        to a temporary one, with a ``cache.CacheDirWarning``.
+    """
+    flags = (*DEFAULT_FLAGS, *extra_compile_args)
+    command = tuple(_compiler_command(compiler))
+    key = _key(sources, list(flags), _compiler_identity(command))
+    # bounded: the module name is also a file name and a C identifier (PyInit_<name>)
+    module_name = f"_lcg_{mangle(sources.layout.model, max_len=40)}_{key[:16]}"
+    _check_names(sources, module_name)
+    job = _Job(sources, key, module_name, flags, command, compiler, cost)
+    with _LOCK:
+        root = cache.cache_dir(cache_dir)
+        if (str(root), key) not in _MEMO:
+            try:
+                _MEMO[str(root), key] = _fetch(job, root)
+            except OSError as exc:
+                if not cache.unwritable(exc):
+                    raise
+                root = _fallback(root, exc, cache_dir, module_name)
+                if (str(root), key) not in _MEMO:
+                    _MEMO[str(root), key] = _fetch(job, root)
+        ffi, lib, so_path = _MEMO[str(root), key]
+    return CompiledSystem(ffi, lib, key, so_path, module_name, sources.layout, sources)
+
+
+def _fallback(root: Path, exc: OSError, explicit, module_name: str) -> Path:
+    """The temporary cache dir after ``root`` could not take a build (``exc``)."""
+    problem = f"cannot take the build of {module_name} ({exc.strerror or exc}: {exc.filename})"
+    if explicit is not None:
+        raise cache.CacheDirError(f"cache directory {root} (the cache_dir argument) {problem}; "
+                                  "pass a writable directory") from exc
+    return cache.fallback_dir(root, problem)
+
+
+def _fetch(job: _Job, root: Path):
+    """Load the entry for ``job.key``, building it if missing or corrupt; (ffi, lib, .so path)."""
+    entry, so_name = root / job.module_name, job.so_name
+    for attempt in range(2):
+        problem = None if str(entry / so_name) in _LOADED else cache.entry_problem(entry, job.key, so_name)
+        if problem is not None:
+            if problem != "missing":
+                cache.evict_entry(entry)
+            if job.cost is not None:
+                warn_if_expensive(job.cost)
+            _compile_entry(job, root, entry)
+        try:
+            module = _import(str(entry / so_name), job.module_name)
+            return module.ffi, module.lib, entry / so_name
+        except ImportError as exc:  # e.g. a corrupt .so whose checksum was rewritten
+            if attempt == 1 or problem is not None:
+                kept = cache.keep_failed(entry, root, job.module_name)
+                raise BuildError(f"built module {job.module_name} cannot be imported: {exc}\n"
+                                 f"kept sources: {kept / job.sources.source_name}",
+                                 c_path=kept / job.sources.source_name) from None
+            cache.evict_entry(entry)
+    raise AssertionError("unreachable")
+
+
+def _compile_entry(job: _Job, root: Path, entry: Path) -> None:
+    """Build in a private directory, then install it as ``entry`` (or keep it on failure)."""
+    sources, module_name, so_name = job.sources, job.module_name, job.so_name
+    check_python_headers(sources)
+    tmp, kept = cache.new_build_dir(root, module_name), None
+    try:
+        (tmp / sources.header_name).write_text(sources.header, encoding="utf-8")
+        (tmp / sources.source_name).write_text(sources.source, encoding="utf-8")
+        kernels = start_kernel_compile(tmp, sources, job.flags, job.command) if os.name == "posix" else None
+        try:
+            ffibuilder = cffi.FFI()
+            ffibuilder.cdef(sources.cdef)
+            ffibuilder.set_source(module_name, f'#include "{sources.header_name}"',
+                                  sources=[str(tmp / sources.source_name)], include_dirs=[str(tmp)],
+                                  extra_compile_args=list(job.flags))
+        except BaseException:
+            if kernels is not None:
+                stop(kernels)
+            raise
+        if kernels is not None:
+            built = compile_in_parallel(ffibuilder, tmp, kernels, module_name, job.flags, job.command, so_name)
+        else:
+            with _compiler_env(job.compiler):
+                built = Path(ffibuilder.compile(tmpdir=str(tmp), verbose=False))
+        if built != tmp / so_name:
+            os.replace(built, tmp / so_name)
+        for item in tmp.iterdir():  # drop object files and distutils' build tree
+            if item.is_dir():
+                shutil.rmtree(item)
+            elif item.suffix in (".o", ".obj"):
+                item.unlink()
+        cache.write_marker(tmp, job.key, so_name)
+        cache.install_entry(tmp, entry)
+    except (cffi.CDefError, cffi.FFIError, cffi.VerificationError) as exc:
+        kept = cache.keep_failed(tmp, root, module_name)
+        raise compile_error(sources, kept, module_name, job.flags, job.command, exc) from None
+    finally:
+        if kept is None and tmp.exists():
+            shutil.rmtree(tmp, ignore_errors=True)

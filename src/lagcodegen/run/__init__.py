@@ -1,0 +1,1 @@
+"""Stage run: CompiledSystem -> Trajectory / SweepResult (the stepping loops run in C)."""

@@ -1,0 +1,58 @@
+"""Stage helper for run: the constraint-drift check of `simulate.simulate`.
+
+A constrained run without projection (or with too weak Baumgarte terms) drifts off phi = 0 while
+its status stays OK; the check reads the residuals the C driver records at each kept sample
+(``lcg_<model>_residuals``, phi then A u + dphi/dt) and warns once max |phi| passes the tolerance.
+"""
+from __future__ import annotations
+
+import math
+import numbers
+import warnings
+
+import numpy as np
+
+from .arguments import real_number
+
+
+class ConstraintDriftWarning(UserWarning):
+    """A constrained run without projection drifted off the constraints by more than the
+    tolerance (``simulate(..., drift_tolerance=...)``)."""
+
+
+#: default ``drift_tolerance`` on max |phi| per precision: well above the rounding of a run
+DRIFT_TOLERANCE = {"double": 1e-6, "float": 1e-3}
+
+
+def resolve_drift_tolerance(layout, tolerance) -> float | None:
+    """The max |phi| tolerance of the drift check for a kernel of ``layout`` (None: the
+    precision's `DRIFT_TOLERANCE`; ``math.inf``: off), or None when there is nothing to check."""
+    if tolerance is None:
+        tolerance = DRIFT_TOLERANCE[layout.precision]
+    elif isinstance(tolerance, numbers.Real) and not isinstance(tolerance, bool) and math.isinf(tolerance) \
+            and tolerance > 0:
+        return None
+    else:
+        tolerance = real_number(tolerance, "drift_tolerance")
+        if not tolerance > 0:
+            raise ValueError(f"drift_tolerance must be positive, got {tolerance}")
+    if not layout.n_constraints or f"{layout.prefix}_residuals" not in layout.functions:
+        return None
+    return tolerance
+
+
+def warn_if_drifted(trajectory, tolerance: float, m: int) -> bool:
+    """Warn (`ConstraintDriftWarning`, and return True) when max |phi| over the kept samples of
+    ``trajectory`` (its residuals, phi in the first m columns) exceeds ``tolerance``."""
+    if trajectory.residuals is None or not len(trajectory.t) or not m:
+        return False
+    phi = np.abs(trajectory.residuals[:, :m].astype(np.float64))
+    size = np.where(np.isfinite(phi), phi, -np.inf).max(axis=1)
+    k = int(np.argmax(size))
+    if not size[k] > tolerance:
+        return False
+    warnings.warn(
+        f"the run drifted off the constraints: max |phi| = {size[k]:.3g} at t = {trajectory.t[k]:.6g} "
+        f"(drift_tolerance = {tolerance:g}); use project=True, Baumgarte stabilization "
+        f"(baumgarte_alpha, baumgarte_beta) or a smaller h", ConstraintDriftWarning, stacklevel=3)
+    return True

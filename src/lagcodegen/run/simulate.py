@@ -1,0 +1,460 @@
+"""Stage: CompiledSystem -> Trajectory (the whole fixed-step loop runs in C).
+
+Also `solve_reference`: scipy's ``solve_ivp`` (DOP853, Radau, ...) on the same compiled
+right-hand side, for measuring the error of the fixed-step methods.
+"""
+from __future__ import annotations
+
+import math
+import numbers
+import warnings
+from collections.abc import Mapping
+from dataclasses import dataclass, replace
+from functools import cache
+
+import numpy as np
+
+from ..integrators.schemes import KIND_SYMPLECTIC_EULER, get_scheme
+from ..native.build import CompiledSystem
+from ..status import Status
+from .arguments import (  # noqa: F401
+    check_output_size,
+    flag,
+    method_name,
+    output_bytes,
+    positive_int,
+    real_number,
+    real_values,
+    step_count,
+    stride_within,
+)
+from .drift import DRIFT_TOLERANCE, ConstraintDriftWarning, resolve_drift_tolerance, warn_if_drifted  # noqa: F401
+
+
+class SimulationError(RuntimeError):
+    """A run stopped early; ``trajectory`` holds the samples up to the failure."""
+
+    def __init__(self, message: str, trajectory: Trajectory):
+        super().__init__(message)
+        self.trajectory = trajectory
+
+
+class StabilityWarning(UserWarning):
+    """The step lies outside the method's linear stability region at the initial state."""
+
+
+@dataclass(frozen=True)
+class Trajectory:
+    """Samples of one run.
+
+    Attributes
+    ----------
+    t : ndarray, (n_out,)
+    x : ndarray, (n_out, 2n); columns named by ``names`` (coordinates, then speeds)
+    names : tuple of str, (2n,)
+    energy : ndarray (n_out,) or None
+    points : ndarray (n_out, n_points, 3) or None; rows named by ``point_names``
+    point_names : tuple of str
+    status : Status
+    failed_step, failed_time : int or None, float or None
+        The step that failed (1-based) and the time it started from, when status is not OK.
+    method : str
+    h : float
+    residuals : ndarray (n_out, 2m) or None
+        Constrained models: phi (m) then A u + dphi/dt (m) at each kept sample.
+    multipliers, constraint_forces : ndarray (n_out, m), (n_out, n) or None
+        Constrained models: lambda and the generalized constraint forces A^T lambda, with
+        M ud = F - A^T lambda (so the force the constraints exert is -A^T lambda).
+    """
+
+    t: np.ndarray
+    x: np.ndarray
+    names: tuple
+    energy: np.ndarray | None
+    points: np.ndarray | None
+    point_names: tuple
+    status: Status
+    failed_step: int | None
+    failed_time: float | None
+    method: str
+    h: float
+    residuals: np.ndarray | None = None
+    multipliers: np.ndarray | None = None
+    constraint_forces: np.ndarray | None = None
+
+    @property
+    def ok(self) -> bool:
+        return self.status == Status.OK
+
+    @property
+    def message(self) -> str:
+        if self.ok:
+            return "ok"
+        return (f"{self.method} stopped at step {self.failed_step} (t = {self.failed_time:.6g}): "
+                f"{self.status.message}")
+
+    def check(self) -> Trajectory:
+        """Return self, or raise `SimulationError` when the run stopped early."""
+        if not self.ok:
+            raise SimulationError(self.message, self)
+        return self
+
+    def __repr__(self) -> str:
+        where = "" if self.ok else f" at step {self.failed_step} (t = {self.failed_time:.6g})"
+        span = f"t = {self.t[0]:.6g} .. {self.t[-1]:.6g}" if len(self.t) else "no samples"
+        return (f"Trajectory(method={self.method!r}, h={self.h:g}, {len(self.t)} samples, {span}, "
+                f"state=({', '.join(self.names)}), status={self.status.name}{where})")
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        """The column of state variable ``name`` (e.g. ``traj["q1"]``), shape (n_out,)."""
+        try:
+            return self.x[:, self.names.index(name)]
+        except ValueError:
+            raise KeyError(f"no state variable {name!r}; names: {', '.join(self.names)}") from None
+
+
+def parameter_vector(system: CompiledSystem, params: Mapping | None = None) -> np.ndarray:
+    """Free-parameter values in ``p[]`` order: ``params`` by name, else the model's defaults."""
+    layout = system.layout
+    if params is not None and not isinstance(params, Mapping):
+        raise TypeError(f"params must be a mapping name -> value, got {type(params).__name__}")
+    given = {(k.name if hasattr(k, "name") else str(k)): v for k, v in (params or {}).items()}
+    fixed = {name for name, _ in layout.fixed}
+    for name in given:
+        if name in fixed:
+            raise ValueError(f"parameter {name!r} is fixed at build time; free parameters: "
+                             f"{', '.join(layout.parameters) or 'none'}")
+        if name not in layout.parameters:
+            raise ValueError(f"unknown parameter {name!r}; free parameters: {', '.join(layout.parameters) or 'none'}")
+    given = dict(zip(given, real_values(given.values(), given, "parameter")))
+    values = dict(layout.defaults) | given
+    missing = [name for name in layout.parameters if name not in values]
+    if missing:
+        raise ValueError(f"no value for parameter(s) {', '.join(missing)} of model {layout.model!r}")
+    p = np.array([values[name] for name in layout.parameters], dtype=real_dtype(system))
+    bad = [name for name, v in zip(layout.parameters, p) if not np.isfinite(v)]
+    if bad:
+        raise ValueError(f"parameter(s) {', '.join(bad)} are not finite")
+    return p
+
+
+def initial_state(system: CompiledSystem, x0) -> np.ndarray:
+    """x0 as a C-contiguous array of 2n values; accepts a sequence or a mapping name -> value
+    (unnamed speeds default to 0, unnamed coordinates are an error)."""
+    layout = system.layout
+    names = layout.coordinates + layout.speeds
+    if isinstance(x0, Mapping):
+        unknown = [k for k in x0 if str(k) not in names]
+        if unknown:
+            raise ValueError(f"unknown state variable(s) {unknown}; state: {', '.join(names)}")
+        missing = [c for c in layout.coordinates if c not in {str(k) for k in x0}]
+        if missing:
+            raise ValueError(f"initial state lacks coordinate(s) {', '.join(missing)}")
+        x0 = [x0.get(name, 0.0) for name in names]
+    elif isinstance(x0, (str, bytes)) or not np.iterable(x0):
+        raise TypeError(f"x0 must be a sequence of {len(names)} numbers ({', '.join(names)}) or a mapping "
+                        f"name -> value, got {x0!r}")
+    values = list(np.asarray(x0, dtype=object).ravel()) if np.ndim(x0) > 1 else list(x0)
+    if len(values) != len(names) or np.ndim(x0) > 1:
+        raise ValueError(f"initial state needs {len(names)} values ({', '.join(names)}), got "
+                         f"{len(values)}{' in shape ' + str(np.shape(x0)) if np.ndim(x0) > 1 else ''}")
+    bad = [name for name, value in zip(names, values) if isinstance(value, numbers.Real)
+           and not isinstance(value, bool) and not math.isfinite(float(value))]
+    if bad:
+        raise ValueError(f"initial state is not finite in {', '.join(bad)}: {values}")
+    x = np.array(real_values(values, names, "initial state variable"), dtype=real_dtype(system))
+    bad = [name for name, value in zip(names, x) if not np.isfinite(value)]
+    if bad:  # finite doubles beyond the float range
+        raise ValueError(f"initial state is not finite in {', '.join(bad)} at {layout.precision} precision")
+    return x
+
+
+def real_dtype(system: CompiledSystem):
+    return np.float32 if system.layout.precision == "float" else np.float64
+
+
+def c_pointer(system: CompiledSystem, array: np.ndarray):
+    ctype = "float[]" if system.layout.precision == "float" else "double[]"
+    return system.ffi.from_buffer(ctype, array, require_writable=array.flags.writeable)
+
+
+def simulate(system: CompiledSystem, x0, t_end: float, h: float, method: str = "rk4", *,
+             params: Mapping | None = None, t0: float = 0.0, stride: int = 1, energy: bool = False,
+             points: bool = False, check_stability: bool = True, project: bool = False,
+             residuals: bool = False, multipliers: bool = False, drift_tolerance: float | None = None,
+             max_output_bytes: int | None = None) -> Trajectory:
+    """Integrate with a fixed step, the whole loop in C.
+
+    Parameters
+    ----------
+    system : CompiledSystem
+        From `pipeline.compile_model` (or `build.build_module`), with ``method`` compiled in.
+    x0 : sequence (2n,) or mapping name -> value
+    t_end, h, t0 : float
+        ``t_end - t0`` must be a whole number of steps, at most 2^63 - 1 of them.
+    method : str
+        A name from ``system.layout.methods``.
+    params : mapping name -> float, optional
+        Free parameter values; the model's defaults fill the rest.
+    stride : int
+        Keep every stride-th sample: ``n_steps // stride + 1`` samples (memory bounded by that);
+        at most the number of steps.
+    energy, points : bool
+        Also record T + V and the named point positions at each kept sample.
+    check_stability : bool
+        Warn (`StabilityWarning`) when h times an eigenvalue of the Jacobian at x0 lies outside
+        the method's linear stability region.
+    project : bool
+        Constrained models: after every step, project the state back onto phi = 0 and
+        A u + dphi/dt = 0 (Gauss-Newton, then linear). Baumgarte stabilization instead is set by
+        the parameters ``baumgarte_alpha`` and ``baumgarte_beta``.
+    residuals, multipliers : bool
+        Constrained models: record the constraint residuals, and the multipliers with the
+        generalized constraint forces, at each kept sample.
+    drift_tolerance : float, optional
+        Constrained models: warn (`ConstraintDriftWarning`) when max |phi| over the kept samples
+        exceeds it; default `DRIFT_TOLERANCE` of the kernel's precision, ``math.inf`` switches
+        the check off.
+    max_output_bytes : int, optional
+        Refuse (`arguments.OutputTooLargeError`) runs keeping more; default half the
+        physical memory.
+
+    Returns
+    -------
+    Trajectory
+        ``status`` says whether the run completed; a failed run keeps the samples before the
+        failure and also emits a RuntimeWarning naming the reason, time and step. A singular
+        status (``SINGULAR_MASS_MATRIX``, ``SINGULAR_CONSTRAINTS``) means the run landed on a
+        singular configuration (or a step crossed a singular configuration: a pivot of M or of
+        A M^-1 A^T that jumps 100x in one step or falls below 1e-8 of its value at t0, 1e-4 in
+        float, or a sign change of det(A_prev A^T)).
+
+    Examples
+    --------
+    The mass on a spring from x = 1 at rest: x(t) = cos(2 t) (omega = sqrt(k/m) = 2), so
+    x(1) = cos 2 = -0.416147 (RK4 at h = 1e-3 is 1e-12 off):
+
+    >>> import sympy as sp, sympy.physics.mechanics as me
+    >>> from lagcodegen import Model
+    >>> x = me.dynamicsymbols("x")
+    >>> m, k = sp.symbols("m k", positive=True)
+    >>> model = Model("oscillator", [x], [m, k], kinetic_energy=m * x.diff()**2 / 2,
+    ...               potential_energy=k * x**2 / 2, parameter_values={"m": 1.0, "k": 4.0})
+    >>> from lagcodegen.pipeline import compile_model
+    >>> from lagcodegen.run.simulate import simulate
+    >>> run = simulate(compile_model(model, methods=("rk4",)), {"x": 1.0}, t_end=1.0, h=1e-3)
+    >>> run.status, round(float(run["x"][-1]), 6)
+    (<Status.OK: 0>, -0.416147)
+    """
+    method = compiled_method(system, method)
+    n_steps = step_count(t0, t_end, h)
+    t0, h = float(t0), float(h)
+    stride = stride_within(stride, n_steps)
+    x = initial_state(system, x0)
+    p = parameter_vector(system, params)
+    outputs = _outputs(system, energy=energy, points=points, project=project, residuals=residuals,
+                       multipliers=multipliers)
+    tolerance = resolve_drift_tolerance(system.layout, drift_tolerance)
+    track = bool(tolerance is not None or outputs["residuals"])
+    nbytes = output_bytes(system.layout, n_steps, stride, energy=outputs["energy"], points=outputs["points"],
+                          residuals=track, multipliers=outputs["multipliers"])
+    check_output_size(nbytes, n_steps, stride, "the run", max_output_bytes)
+    if flag(check_stability, "check_stability"):
+        warn_if_unstable(system, x, p, h, method, t0, n_steps)
+    trajectory = _run(system, x, p, t0, h, n_steps, stride, method, outputs, track)
+    if tolerance is not None:
+        warn_if_drifted(trajectory, tolerance, system.layout.n_constraints)
+    if not outputs["residuals"] and trajectory.residuals is not None:  # kept for the drift check only
+        trajectory = replace(trajectory, residuals=None)
+    return trajectory
+
+
+def compiled_method(system: CompiledSystem, method) -> str:
+    """``method`` lower-cased, checked to be a string compiled into ``system``."""
+    layout = system.layout
+    method = method_name(method)
+    if method not in layout.methods:
+        raise ValueError(f"method {method!r} is not compiled into {layout.model!r}; compiled: "
+                         f"{', '.join(layout.methods) or 'none'}")
+    return method
+
+
+def _outputs(system: CompiledSystem, **requested) -> dict:
+    """The optional outputs as checked bools; ValueError when the kernel lacks the C function one
+    needs (the C driver skips a missing output, which would leave its array unwritten)."""
+    layout = system.layout
+    outputs = {name: flag(value, name) for name, value in requested.items()}
+    asked = [name for name in ("project", "residuals", "multipliers") if outputs[name]]
+    if asked and not layout.n_constraints:
+        raise ValueError(f"{', '.join(asked)} need holonomic constraints; model {layout.model!r} has none")
+    for name, output in NEEDED_OUTPUT.items():
+        if outputs.get(name) and f"{layout.prefix}_{name}" not in layout.functions:
+            raise ValueError(f"{name}=True: model {layout.model!r} was compiled without the {output!r} output "
+                             f"(compile_model(..., outputs=(..., {output!r})))")
+    return outputs
+
+
+#: option -> the compile output that brings its C function lcg_<model>_<option>
+NEEDED_OUTPUT = {"energy": "energy", "points": "points", "project": "constraints", "residuals": "constraints",
+                 "multipliers": "multipliers"}
+
+
+def _run(system, x, p, t0, h, n_steps, stride, method, outputs, track_residuals) -> Trajectory:
+    layout, dtype = system.layout, real_dtype(system)
+    n_out = n_steps // stride + 1
+    t_out = np.empty(n_out, dtype=dtype)
+    x_out = np.empty((n_out, 2 * layout.n), dtype=dtype)
+    e_out = np.empty(n_out, dtype=dtype) if outputs["energy"] else None
+    p_out = np.empty((n_out, len(layout.points), 3), dtype=dtype) if outputs["points"] else None
+    m = layout.n_constraints
+    r_out = np.full((n_out, 2 * m), np.nan, dtype=dtype) if m and track_residuals else None
+    m_out = np.full((n_out, m + layout.n), np.nan, dtype=dtype) if m and outputs["multipliers"] else None
+    work = np.empty(work_size(system), dtype=dtype)
+    steps_done = system.ffi.new("long *")
+    ptr = lambda a: system.ffi.NULL if a is None else c_pointer(system, a)  # noqa: E731
+    simulate_c = getattr(system.lib, f"{layout.prefix}_simulate")
+    code = simulate_c(layout.methods.index(method), t0, c_pointer(system, x), c_pointer(system, p), h,
+                      n_steps, stride, int(outputs["project"]), ptr(t_out), ptr(x_out), ptr(e_out), ptr(p_out),
+                      ptr(r_out), ptr(m_out), ptr(work), steps_done)
+    status = Status(code)
+    kept = n_out if status == Status.OK else steps_done[0] // stride + 1
+    failed_step = None if status == Status.OK else steps_done[0] + 1
+    failed_time = None if status == Status.OK else t0 + steps_done[0] * h
+    trajectory = Trajectory(
+        t=t_out[:kept], x=x_out[:kept], names=layout.coordinates + layout.speeds,
+        energy=None if e_out is None else e_out[:kept], points=None if p_out is None else p_out[:kept],
+        residuals=None if r_out is None else r_out[:kept],
+        multipliers=None if m_out is None else m_out[:kept, :m],
+        constraint_forces=None if m_out is None else m_out[:kept, m:],
+        point_names=layout.points, status=status, failed_step=failed_step, failed_time=failed_time,
+        method=method, h=h)
+    if not trajectory.ok:
+        warnings.warn(trajectory.message, RuntimeWarning, stacklevel=3)
+    return trajectory
+
+
+def work_size(system: CompiledSystem) -> int:
+    return int(getattr(system.lib, f"{system.layout.prefix.upper()}_WORK_SIZE"))
+
+
+def jacobian(system: CompiledSystem, x, p, t: float = 0.0) -> np.ndarray:
+    """df/dx (2n, 2n) of the compiled first-order right-hand side (the analytic Jacobian)."""
+    layout = system.layout
+    name = f"{layout.prefix}_jacobian"
+    if name not in layout.functions:
+        raise ValueError(f"model {layout.model!r} was compiled without the 'jacobian' output")
+    size = 2 * layout.n
+    J = np.empty((size, size), dtype=real_dtype(system))
+    x, p = np.ascontiguousarray(x, dtype=real_dtype(system)), np.ascontiguousarray(p, dtype=real_dtype(system))
+    code = getattr(system.lib, name)(t, c_pointer(system, x), c_pointer(system, p), c_pointer(system, J))
+    if code == Status.NONFINITE_STATE:
+        raise JacobianOverflow(f"jacobian at x = {x} is not finite: {Status(code).message}")
+    if code != Status.OK:
+        raise ValueError(f"jacobian failed at x = {x}: {Status(code).message}")
+    return J
+
+
+class JacobianOverflow(ValueError):
+    """The Jacobian kernel met NaN or infinite values at a finite state (e.g. a parameter near overflow)."""
+
+
+def warn_if_unstable(system: CompiledSystem, x, p, h: float, method: str, t: float = 0.0,
+                     n_steps: int = 1) -> bool:
+    """Warn (and return True) when the step is outside the method's linear stability region.
+
+    The Jacobian's eigenvalues lambda at x are the local frequencies. Modes with Re(lambda) > 0
+    grow in the exact solution too and are ignored; for the others the amplification
+    |R(h lambda)| per step (R the method's stability function) must not exceed 1 by so much that
+    the run, n_steps long, amplifies them more than tenfold.
+    """
+    if f"{system.layout.prefix}_jacobian" not in system.layout.functions:
+        return False
+    scheme = get_scheme(method)
+    if scheme.implicit:  # A-stable or close to it; the pre-check is for explicit steps
+        return False
+    try:
+        J = jacobian(system, x, p, t)
+    except JacobianOverflow:
+        J = None
+    except ValueError:  # e.g. a singular mass matrix at x: the run itself reports it
+        return False
+    if J is None or not np.all(np.isfinite(J)):  # e.g. a parameter of 1e308: the run reports its status
+        warnings.warn(f"stability pre-check skipped: the Jacobian at the initial state is not finite "
+                      f"(parameters or state near overflow); {method} runs unchecked", StabilityWarning,
+                      stacklevel=3)
+        return False
+    try:
+        eigenvalues = np.linalg.eigvals(J.astype(np.float64))
+    except np.linalg.LinAlgError:  # eigenvalue iteration did not converge: never fatal for a pre-check
+        return False
+    settled = eigenvalues[eigenvalues.real <= 1e-9 * np.abs(eigenvalues)]
+    if settled.size == 0:
+        return False
+    w = float(np.max(np.abs(settled)))
+    if scheme.stepper == KIND_SYMPLECTIC_EULER:
+        unstable = h * w >= scheme.imag_stability_limit()
+        limit = f"h*w < {scheme.imag_stability_limit():g}"
+    else:
+        with np.errstate(over="ignore", invalid="ignore"):  # a huge h*w overflows R: unstable
+            growth = float(np.max(np.abs(_stability_function(method)(h * settled))))
+        unstable = not growth <= 1 + 1e-12 and not n_steps * math.log(growth) <= math.log(10.0)
+        limit = (f"h*w < {scheme.imag_stability_limit():.4g} on the imaginary axis, "
+                 f"{scheme.real_stability_limit():.4g} on the negative real axis")
+    if unstable:
+        warnings.warn(
+            f"step h = {h:g} with the largest frequency w = {w:.6g} rad/s of the Jacobian at the "
+            f"initial state gives h*w = {h * w:.4g}, outside {method}'s stability region ({limit}); "
+            f"the run will likely blow up: reduce h or use an implicit method", StabilityWarning, stacklevel=3)
+    return unstable
+
+
+@cache
+def _stability_function(method: str):
+    import sympy as sp
+
+    from ..integrators.tableaux import Z
+
+    return sp.lambdify(Z, get_scheme(method).stability_polynomial(), "numpy")
+
+
+def solve_reference(system: CompiledSystem, x0, t_eval, *, params: Mapping | None = None, t0: float = 0.0,
+                    method: str = "DOP853", rtol: float = 1e-12, atol: float = 1e-12):
+    """scipy ``solve_ivp`` on the compiled right-hand side; returns (t (k,), x (k, 2n)).
+
+    The reference for error measurements (DOP853 or Radau at rtol = atol = 1e-12).
+    """
+    from scipy.integrate import solve_ivp
+
+    layout = system.layout
+    if layout.precision != "double":
+        raise ValueError("reference solutions need a double-precision kernel")
+    rhs = make_rhs(system, params)
+    x = initial_state(system, x0)
+    t_eval = np.asarray(t_eval, dtype=float)
+    kwargs = {}
+    if method in ("Radau", "BDF", "LSODA") and f"{layout.prefix}_jacobian" in layout.functions:
+        p = parameter_vector(system, params)
+        kwargs["jac"] = lambda t, y: jacobian(system, y, p, t)
+    solution = solve_ivp(rhs, (t0, float(t_eval[-1])), x, method=method, t_eval=t_eval, rtol=rtol,
+                         atol=atol, **kwargs)
+    if not solution.success:
+        raise RuntimeError(f"reference solution ({method}) failed: {solution.message}")
+    return solution.t, solution.y.T
+
+
+def make_rhs(system: CompiledSystem, params: Mapping | None = None):
+    """``f(t, x) -> xdot`` (numpy) calling the compiled rhs; raises on a non-OK status."""
+    layout = system.layout
+    p = parameter_vector(system, params)
+    p_ptr = c_pointer(system, p)
+    rhs_c = getattr(system.lib, f"{layout.prefix}_rhs")
+    dtype = real_dtype(system)
+
+    def f(t, x):
+        x = np.ascontiguousarray(x, dtype=dtype)
+        out = np.empty_like(x)
+        code = rhs_c(t, c_pointer(system, x), p_ptr, c_pointer(system, out))
+        if code != Status.OK:
+            raise FloatingPointError(f"rhs failed at t = {t}: {Status(code).message}")
+        return out
+    return f

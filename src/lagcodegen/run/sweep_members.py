@@ -1,0 +1,112 @@
+"""Stage helper for run: the members of a sweep (a Cartesian grid or an explicit table) as
+per-member initial states and parameter vectors, every axis checked by name.
+"""
+from __future__ import annotations
+
+import numbers
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+
+from ..native.build import CompiledSystem
+from .simulate import initial_state, parameter_vector, real_dtype
+
+
+def cartesian_members(grid: Mapping[str, Sequence[float]]) -> tuple[tuple, np.ndarray, tuple]:
+    """(columns, values (n_members, n_columns), axes) of the Cartesian product of ``grid``."""
+    columns, axes = grid_axes(grid)
+    return columns, cartesian_product(axes), axes
+
+
+def grid_axes(grid: Mapping[str, Sequence[float]]) -> tuple[tuple, tuple]:
+    """(columns, axes): the checked axes of a grid; errors name the axis."""
+    if not isinstance(grid, Mapping):
+        raise TypeError(f"grid must be a mapping name -> values, got {type(grid).__name__}")
+    if not grid:
+        raise ValueError("the grid is empty: give at least one name with values")
+    columns = _column_names(grid)
+    axes = tuple(column_values(name, axis, "grid axis") for name, axis in zip(columns, grid.values()))
+    for name, axis in zip(columns, axes):
+        if axis.size == 0:
+            raise ValueError(f"grid axis {name!r} has no values")
+    return columns, axes
+
+
+def cartesian_product(axes) -> np.ndarray:
+    """(prod len, len(axes)) rows of the product of ``axes`` in C order (last axis fastest)."""
+    mesh = np.meshgrid(*axes, indexing="ij")
+    return np.column_stack([m.ravel() for m in mesh]).astype(float) if mesh else np.empty((1, 0))
+
+
+def table_members(members: Mapping[str, Sequence[float]]) -> tuple[tuple, np.ndarray]:
+    """(columns, values) of an explicit member table: equal-length columns by name."""
+    if not isinstance(members, Mapping):
+        raise TypeError(f"members must be a mapping name -> values, got {type(members).__name__}")
+    if not members:
+        raise ValueError("the member table is empty")
+    columns = _column_names(members)
+    arrays = [column_values(name, v, "member column") for name, v in zip(columns, members.values())]
+    lengths = {a.size for a in arrays}
+    if len(lengths) != 1 or 0 in lengths:
+        raise ValueError(f"member table columns must be non-empty and equally long, got lengths "
+                         f"{dict(zip(columns, (a.size for a in arrays)))}")
+    return columns, np.column_stack(arrays)
+
+
+def _column_names(table: Mapping) -> tuple:
+    columns = tuple(getattr(name, "name", str(name)) for name in table)
+    twice = sorted({name for name in columns if columns.count(name) > 1})
+    if twice:
+        raise ValueError(f"{', '.join(map(repr, twice))} given more than once")
+    return columns
+
+
+def column_values(name: str, values, what: str) -> np.ndarray:
+    """One grid axis or table column as a 1-D float array (a scalar is one value); TypeError
+    for non-numbers, ValueError for nested or ragged values, naming the column."""
+    try:
+        array = np.asarray(values)
+    except ValueError as error:  # ragged nesting
+        raise ValueError(f"{what} {name!r} has values of uneven shape ({error})") from None
+    if array.ndim > 1:
+        raise ValueError(f"{what} {name!r} must be a flat sequence of numbers, got shape {array.shape}")
+    if array.dtype.kind not in "iuf":  # strings, bools, complex, or objects to look at one by one
+        # the caller's own objects where possible: numpy turns (1.0, "x") into two strings
+        items = list(values) if isinstance(values, (list, tuple)) else array.astype(object).ravel()
+        bad = [v for v in items if isinstance(v, (bool, np.bool_)) or not isinstance(v, numbers.Real)]
+        if bad:
+            raise TypeError(f"{what} {name!r} holds a non-number: {bad[0]!r} ({type(bad[0]).__name__})")
+    try:
+        return array.astype(float).ravel()
+    except OverflowError:
+        raise ValueError(f"{what} {name!r} holds a number beyond the double range") from None
+
+
+def member_arrays(system: CompiledSystem, columns, values, x0, params):
+    """Per-member x0 (n_members, 2n) and p (n_members, n_p) for the columns varied."""
+    layout = system.layout
+    state_names = layout.coordinates + layout.speeds
+    fixed = {name for name, _ in layout.fixed}
+    for name in columns:
+        if name in fixed:
+            raise ValueError(f"{name!r} is fixed at build time and cannot be swept; free parameters: "
+                             f"{', '.join(layout.parameters) or 'none'}")
+        if name not in layout.parameters and name not in state_names:
+            raise ValueError(f"cannot sweep {name!r}: not a free parameter ({', '.join(layout.parameters) or 'none'})"
+                             f" nor a state variable ({', '.join(state_names)})")
+    bad = [name for j, name in enumerate(columns) if not np.all(np.isfinite(values[:, j]))]
+    if bad:
+        raise ValueError(f"swept values of {', '.join(bad)} are not all finite")
+    dtype = real_dtype(system)
+    if isinstance(x0, Mapping):  # swept state variables need no base value
+        x0 = {**{name: 0.0 for name in columns if name in state_names}, **x0}
+    base_x = initial_state(system, x0)
+    base_p = parameter_vector(system, params)
+    xs = np.repeat(base_x[None, :], len(values), axis=0)
+    ps = np.repeat(base_p[None, :], len(values), axis=0) if base_p.size else np.zeros((len(values), 1), dtype)
+    for j, name in enumerate(columns):
+        if name in layout.parameters:
+            ps[:, layout.parameters.index(name)] = values[:, j]
+        else:
+            xs[:, state_names.index(name)] = values[:, j]
+    return np.ascontiguousarray(xs, dtype=dtype), np.ascontiguousarray(ps, dtype=dtype)

@@ -1,0 +1,1 @@
+"""Stage statics: EquationsOfMotion -> equilibria, linear models, consistent states."""

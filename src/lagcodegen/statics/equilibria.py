@@ -1,0 +1,454 @@
+"""Stage: EquationsOfMotion -> equilibria, linearization.
+
+Principle of virtual displacements (Lagrange; Lurie, Analytical Mechanics, ch. 2; Goldstein,
+Classical Mechanics, sec. 1.4): a configuration q* of a system ``M(q, t) ud = F(q, u, t)`` is an
+equilibrium when the system, placed there at rest, stays there, i.e. when the generalized forces
+at rest vanish::
+
+    F(q*, u = 0, t) = 0        (n equations in q*)
+
+For a rheonomic model (coordinates measured in a frame moving in a prescribed way) F at rest
+also holds the transport inertia forces (centrifugal forces of a spinning frame), so its zeros are
+the *relative* equilibria, at rest in the moving frame. They exist only if the conditions do not
+depend on t; `equilibrium_conditions` checks that.
+
+Models with holonomic constraints: `constrained.constrained_equilibrium`.
+
+About an equilibrium q0 the small motions dq = q - q0 obey the linear model::
+
+    M0 dqdd + C0 dqd + K0 dq = 0,
+    M0 = M(q0, t0),  C0 = -dF/du (q0, 0, t0),  K0 = -dF/dq (q0, 0, t0),  t0 = 0.
+
+Time convention: everything is evaluated at t0 = 0. For a steady relative equilibrium of a
+uniformly moving frame (the governor) M and F do not depend on t in the moving coordinates, so
+the choice does not matter; for a model whose equations depend on t the result is the linear
+model frozen at t = 0 (the true linearization is then time-varying).
+
+Undamped natural frequencies solve ``K0 v = w**2 M0 v`` (Lagrange-Dirichlet: q0 is stable when
+K0 is positive definite); C0 (damping, and the gyroscopic Coriolis terms of a moving frame) is
+left out of them.
+"""
+from __future__ import annotations
+
+import itertools
+import math
+import numbers
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import scipy.linalg
+import scipy.optimize
+import sympy as sp
+
+from ..symbolic.derive import EquationsOfMotion
+
+SIMPLIFY_MAX_N = 6        # above this, entries are never simplified (time checks go numeric)
+MAX_GUESSES = 512         # size of the default grid of starting points
+LINEAR_GRID = (-2.0, 2.0)  # default guess range of coordinates that are not angles
+_TRIG = (sp.sin, sp.cos, sp.tan)
+
+
+# -- conditions ---------------------------------------------------------------------------------
+def equilibrium_conditions(eom: EquationsOfMotion) -> sp.ImmutableMatrix:
+    """The generalized forces at rest, ``F(q, u=0, t)``, shape (n, 1), free of t.
+
+    An entry that contains t is simplified (``trigsimp``, then ``simplify``; for n > 6 neither,
+    only a numeric check at seeded random points); if t survives, it is a genuine dependence.
+
+    Raises
+    ------
+    ValueError
+        If an entry depends on t: the model has no steady (relative) equilibrium.
+    """
+    G = eom.forcing.xreplace({ui: 0 for ui in eom.u})
+    return sp.ImmutableMatrix([_steady_entry(eom, i, g) for i, g in enumerate(G)])
+
+
+def _steady_entry(eom: EquationsOfMotion, i: int, g: sp.Expr) -> sp.Expr:
+    t = eom.t
+    if t not in g.free_symbols:
+        return g
+    if eom.n <= SIMPLIFY_MAX_N:
+        g = sp.trigsimp(g)
+        if t in g.free_symbols:
+            g = sp.simplify(g)
+        if t not in g.free_symbols:
+            return g
+    if _independent_of_t(eom, g):
+        return g.xreplace({t: 0})  # the value is the same at every t
+    raise ValueError(
+        f"equilibrium condition F[{i}] (coordinate {eom.q[i]}) of model {eom.name!r} depends on "
+        f"{t} at rest: {g}; no steady (relative) equilibrium exists")
+
+
+def _independent_of_t(eom: EquationsOfMotion, g: sp.Expr, samples: int = 4) -> bool:
+    """Numerically: does g(q, p, t) keep its value over t at seeded random (q, p)?"""
+    others = sorted(g.free_symbols - {eom.t}, key=str)
+    f = sp.lambdify(others + [eom.t], g, "numpy")
+    rng = np.random.default_rng(0)
+    times = np.array([0.0, 0.37, 1.1, 2.9, 7.3])
+    seen = False
+    with np.errstate(all="ignore"):
+        for _ in range(samples):
+            point = rng.uniform(0.5, 2.0, len(others))
+            values = np.array([complex(f(*point, tk)) for tk in times])
+            if not np.all(np.isfinite(values)):
+                continue
+            seen = True
+            if np.max(np.abs(values - values[0])) > 1e-9 * (1.0 + np.max(np.abs(values))):
+                return False
+    return seen
+
+
+# -- equilibria ---------------------------------------------------------------------------------
+def find_equilibria(eom: EquationsOfMotion, values: Mapping | None = None,
+                    guesses: Any = None) -> list[dict]:
+    """Equilibria: configurations q* with ``F(q*, 0, t) = 0``.
+
+    Parameters
+    ----------
+    eom : EquationsOfMotion
+    values : mapping parameter (Symbol or name) -> float, optional
+        None: solve symbolically (``sympy.solve`` on the per-entry simplified conditions; for
+        n > 6 the entries are passed unsimplified). A mapping (``{}`` for the catalog defaults):
+        solve numerically, with ``values`` overriding ``eom.parameter_values``.
+    guesses : array_like (k, n) or (n,); rows may be mappings q (Symbol or name) -> float, optional
+        Numeric starting points. Default: a deterministic grid, angle-like coordinates over
+        [-pi, pi), the others over `LINEAR_GRID` (pass guesses for other scales); at most
+        `MAX_GUESSES` points, a seeded random sample of the box when the grid would be bigger.
+
+    Returns
+    -------
+    list of dict q_symbol -> expr (symbolic) or float (numeric)
+        Symbolic: as ``sympy.solve`` gives them (branches may repeat modulo 2 pi; ``[{}]`` when
+        every configuration is an equilibrium). Numeric: unique roots, sorted, angle-like
+        coordinates (those that enter M and F only through sin/cos/tan of integer multiples) are
+        reduced to (-pi, pi] and deduplicated modulo 2 pi.
+
+    Examples
+    --------
+    The pendulum hangs (theta = 0) or stands (theta = pi):
+
+    >>> import sympy as sp, sympy.physics.mechanics as me
+    >>> from lagcodegen import Model, derive_equations
+    >>> theta = me.dynamicsymbols("theta")
+    >>> m, g, l = sp.symbols("m g l", positive=True)
+    >>> pendulum = Model("pendulum", [theta], [m, g, l], kinetic_energy=m * l**2 * theta.diff()**2 / 2,
+    ...                  potential_energy=-m * g * l * sp.cos(theta),
+    ...                  parameter_values={"m": 1.0, "g": 9.81, "l": 1.0})
+    >>> eom = derive_equations(pendulum)
+    >>> from lagcodegen.statics.equilibria import find_equilibria
+    >>> find_equilibria(eom)
+    [{theta: 0}, {theta: pi}]
+    """
+    G = equilibrium_conditions(eom)
+    if values is None:
+        if guesses is not None:
+            raise ValueError("guesses are starting points of the numeric search: pass values= too "
+                             "(values={} for the model's default parameter values)")
+        return _solve_symbolic(eom, G)
+    return _solve_numeric(eom, G, resolve_values(eom, values), guesses)
+
+
+def _solve_symbolic(eom: EquationsOfMotion, G: sp.Matrix) -> list[dict]:
+    simplify = sp.simplify if eom.n <= SIMPLIFY_MAX_N else (lambda e: e)
+    equations = [e for e in (simplify(g) for g in G) if e != 0]
+    if not equations:
+        return [{}]
+    try:
+        return sp.solve(equations, list(eom.q), dict=True)
+    except NotImplementedError as err:
+        raise ValueError(f"sympy cannot solve the equilibrium conditions of model {eom.name!r} "
+                         f"({err}); pass values= for a numeric search") from None
+
+
+def _solve_numeric(eom: EquationsOfMotion, G: sp.Matrix, vals: dict, guesses: Any) -> list[dict]:
+    n, q = eom.n, list(eom.q)
+    Gn = substitute_values(eom, G, vals, "equilibrium conditions")
+    fun = vector_function(q, Gn, (n,))
+    jac = vector_function(q, Gn.jacobian(q), (n, n))
+    angles = angle_like(eom)
+    starts = _starting_points(eom, guesses, angles)
+    with np.errstate(all="ignore"):
+        scale = max([np.max(np.abs(r)) for r in map(fun, starts) if np.all(np.isfinite(r))], default=1.0)
+        tol = 1e-9 * max(scale, 1e-12)
+        roots = []
+        for x0 in starts:
+            x = scipy.optimize.root(fun, x0, jac=jac, method="hybr", options={"xtol": 1e-13}).x
+            residual = fun(x)
+            if np.all(np.isfinite(x)) and np.all(np.isfinite(residual)) and np.max(np.abs(residual)) <= tol:
+                roots.append(_canonical(x, angles))
+    return [dict(zip(q, map(float, x))) for x in _unique(roots, angles)]
+
+
+def vector_function(q: list, expr: sp.Matrix, shape: tuple):
+    f = sp.lambdify([q], expr, "numpy")
+    return lambda x: np.asarray(f(x), dtype=float).reshape(shape)
+
+
+def angle_like(eom: EquationsOfMotion) -> tuple[bool, ...]:
+    """Per coordinate: does it enter M and F only as sin/cos/tan(k q + ...), k an integer?
+
+    Those coordinates are angles: the equations are 2 pi-periodic in them.
+    """
+    exprs = list(eom.mass_matrix) + list(eom.forcing)
+    trig = set().union(*(e.atoms(*_TRIG) for e in exprs))
+    flags = []
+    for qi in eom.q:
+        inside = {f for f in trig if qi in f.free_symbols}
+        periodic = bool(inside) and all(f.args[0].diff(qi).is_integer for f in inside)
+        hidden = {f: sp.Dummy() for f in inside}
+        flags.append(periodic and not any(qi in e.xreplace(hidden).free_symbols for e in exprs))
+    return tuple(flags)
+
+
+def _starting_points(eom: EquationsOfMotion, guesses: Any, angles: tuple) -> np.ndarray:
+    n = eom.n
+    if guesses is not None:
+        guesses = [guesses] if isinstance(guesses, Mapping) else guesses
+        rows = [coordinate_point(eom, g) if isinstance(g, Mapping) else g for g in guesses]
+        try:
+            x0 = np.array(rows, dtype=float)
+        except (TypeError, ValueError):
+            x0 = np.array(None)  # ragged rows: reported below
+        if x0.ndim == 1:
+            x0 = x0.reshape(-1, 1) if n == 1 else x0.reshape(1, -1)
+        if x0.ndim != 2 or x0.shape[1] != n:
+            raise ValueError(f"guesses must have shape (k, {n}) for coordinates "
+                             f"{', '.join(map(str, eom.q))}; got {guesses!r}")
+        return x0
+    per_axis = max(2, min(8, int(round(MAX_GUESSES ** (1.0 / n), 9))))
+    axes = [-np.pi + 2 * np.pi * np.arange(per_axis) / per_axis if a
+            else np.linspace(*LINEAR_GRID, per_axis) for a in angles]
+    if per_axis ** n <= MAX_GUESSES:
+        return np.array(list(itertools.product(*axes)), dtype=float)
+    low = np.array([-np.pi if a else LINEAR_GRID[0] for a in angles])
+    high = np.array([np.pi if a else LINEAR_GRID[1] for a in angles])
+    return np.random.default_rng(0).uniform(low, high, (MAX_GUESSES, n))
+
+
+def _canonical(x: np.ndarray, angles: tuple) -> np.ndarray:
+    """Angle-like entries reduced to (-pi, pi]; round-off around zero (|x| < 1e-12) set to 0."""
+    y = np.array(x, dtype=float)
+    for i, a in enumerate(angles):
+        if a:
+            y[i] = np.pi - np.mod(np.pi - y[i], 2 * np.pi)
+            if y[i] <= -np.pi + 1e-9:
+                y[i] += 2 * np.pi
+    return np.where(np.abs(y) < 1e-12, 0.0, y)
+
+
+def _unique(roots: list, angles: tuple, tol: float = 1e-6) -> list:
+    kept: list = []
+    for x in roots:
+        if not any(_distance(x, y, angles) < tol for y in kept):
+            kept.append(x)
+    return sorted(kept, key=lambda x: tuple(np.round(x, 9)))
+
+
+def _distance(x: np.ndarray, y: np.ndarray, angles: tuple) -> float:
+    d = np.abs(x - y)
+    d = np.where(angles, np.abs(np.mod(x - y + np.pi, 2 * np.pi) - np.pi), d / (1.0 + np.abs(y)))
+    return float(np.max(d))
+
+
+# -- values and points --------------------------------------------------------------------------
+def resolve_values(eom: EquationsOfMotion, values: Mapping) -> dict:
+    """``eom.parameter_values`` updated by ``values`` (keys: parameter Symbols or names)."""
+    by_name = {p.name: p for p in eom.parameters}
+    out = dict(eom.parameter_values)
+    for key, value in dict(values).items():
+        symbol = by_name.get(key.name if isinstance(key, sp.Symbol) else key)
+        if symbol is None:
+            raise ValueError(f"unknown parameter {key!r} for model {eom.name!r} "
+                             f"(parameters: {', '.join(by_name) or 'none'})")
+        try:
+            out[symbol] = float(value)
+        except (TypeError, ValueError):
+            raise ValueError(f"parameter {symbol} needs a number, got {value!r}") from None
+        if isinstance(value, (bool, np.bool_)) or not math.isfinite(out[symbol]):  # NaN gives NaN matrices
+            raise ValueError(f"parameter {symbol} needs a finite number, got {value!r}")
+    return out
+
+
+def substitute_values(eom: EquationsOfMotion, expr: sp.Matrix, vals: dict, what: str) -> sp.Matrix:
+    """``expr`` with the parameters replaced by numbers; names any parameter left without one."""
+    out = expr.xreplace({p: sp.Float(v) for p, v in vals.items()})
+    missing = sorted(out.free_symbols & set(eom.parameters), key=str)
+    if missing:
+        raise ValueError(f"{what} of model {eom.name!r}: no value for parameter(s) "
+                         f"{', '.join(map(str, missing))}; pass them in values=")
+    return out
+
+
+def coordinate_point(eom: EquationsOfMotion, q0: Any) -> tuple:
+    """q0 as a tuple of n entries; q0 is a sequence or a mapping (q Symbol or name) -> value."""
+    names = ", ".join(map(str, eom.q))
+    if isinstance(q0, Mapping):
+        by_name = {qi.name: qi for qi in eom.q}
+        given = {}
+        for key, value in q0.items():
+            symbol = by_name.get(key.name if isinstance(key, sp.Symbol) else key)
+            if symbol is None:
+                raise ValueError(f"{key!r} is not a coordinate of model {eom.name!r} (coordinates: {names})")
+            given[symbol] = value
+        missing = [str(qi) for qi in eom.q if qi not in given]
+        if missing:
+            raise ValueError(f"no value for coordinate(s) {', '.join(missing)} of model {eom.name!r}")
+        q0 = tuple(given[qi] for qi in eom.q)
+    else:
+        q0 = tuple(np.ravel(q0)) if isinstance(q0, np.ndarray) else tuple(q0)
+    if len(q0) != eom.n:
+        raise ValueError(f"q0 has {len(q0)} entries; model {eom.name!r} has {eom.n} coordinate(s) ({names})")
+    for qi, value in zip(eom.q, q0):
+        _check_coordinate(qi, value)
+    return q0
+
+
+def _check_coordinate(qi, value) -> None:
+    """A q0 entry is a number or a sympy expression: not a string (sympify would turn "a" into a
+    new symbol), not NaN or infinite (NaN matrices)."""
+    if isinstance(value, (str, bytes, bool, np.bool_)) or value is None:
+        raise TypeError(f"q0 entry for {qi} must be a number or sympy expression, got {value!r}")
+    if isinstance(value, numbers.Real) and not math.isfinite(float(value)):
+        raise ValueError(f"q0 entry for {qi} must be finite, got {value!r}")
+    if isinstance(value, sp.Basic) and value.is_number and value.has(sp.nan, sp.zoo, sp.oo, -sp.oo):
+        raise ValueError(f"q0 entry for {qi} must be finite, got {value!r}")
+
+
+# -- linearization ------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class LinearModel:
+    """``M0 dqdd + C0 dqd + K0 dq = 0`` about the equilibrium q0 (see the module docstring).
+
+    Attributes
+    ----------
+    q : tuple of Symbol, (n,)
+    q0 : tuple, (n,)
+    M0, C0, K0 : ndarray (n, n) when built with values, else sympy ImmutableMatrix (n, n)
+    """
+
+    q: tuple
+    q0: tuple
+    M0: Any
+    C0: Any
+    K0: Any
+
+    def eigenvalues(self) -> np.ndarray:
+        """w**2 of ``K0 v = w**2 M0 v``, ascending, shape (n,); tiny ones (relative 1e-10) are 0."""
+        return self._eig()[0]
+
+    @property
+    def stable(self) -> bool:
+        """True when every w**2 > 0 (K0 positive definite: Lagrange-Dirichlet); a zero
+        (neutral) or negative w**2 gives False."""
+        return bool(np.all(self.eigenvalues() > 0))
+
+    def natural_frequencies(self) -> np.ndarray:
+        """Undamped natural frequencies in rad/s, shape (n,), ascending in w**2.
+
+        Real when the equilibrium is stable; an unstable direction (w**2 < 0) gives an imaginary
+        entry i*sqrt(-w**2) (its growth rate), and then the array is complex.
+        """
+        lam = self.eigenvalues()
+        if np.any(lam < 0):
+            return np.sqrt(lam.astype(complex))
+        return np.sqrt(lam)
+
+    def mode_shapes(self) -> np.ndarray:
+        """Columns v_k, shape (n, n), in the order of `natural_frequencies`; v^T M0 v = I,
+        each column's largest-magnitude entry positive."""
+        return self._eig()[1]
+
+    def _eig(self) -> tuple[np.ndarray, np.ndarray]:
+        M0, K0 = (_numeric_matrix(A, name) for A, name in ((self.M0, "M0"), (self.K0, "K0")))
+        asym = np.max(np.abs(K0 - K0.T), initial=0.0)
+        if asym > 1e-9 * max(np.max(np.abs(K0)), 1e-300):
+            j, k = np.unravel_index(np.argmax(np.abs(K0 - K0.T)), K0.shape)
+            raise ValueError(f"K0 is not symmetric (K0[{j},{k}] != K0[{k},{j}]: circulatory forces); "
+                             "undamped natural frequencies are not defined")
+        try:
+            lam, V = scipy.linalg.eigh((K0 + K0.T) / 2, M0)
+        except np.linalg.LinAlgError:
+            raise ValueError(f"M0 is not positive definite at q0 = {self.q0}") from None
+        lam = np.where(np.abs(lam) <= 1e-10 * max(np.max(np.abs(lam)), 1e-300), 0.0, lam)
+        signs = np.sign(V[np.argmax(np.abs(V), axis=0), np.arange(V.shape[1])])
+        return lam, V * np.where(signs == 0, 1.0, signs)
+
+
+def _numeric_matrix(A: Any, name: str) -> np.ndarray:
+    if isinstance(A, np.ndarray):
+        return A
+    free = sorted(A.free_symbols, key=str)
+    if free:
+        raise ValueError(f"{name} still contains {', '.join(map(str, free))}: "
+                         "linearize with values= for numeric frequencies")
+    return np.array(A.evalf(), dtype=float)
+
+
+def linearize(eom: EquationsOfMotion, q0: Any, values: Mapping | None = None) -> LinearModel:
+    """The `LinearModel` about q0 at u = 0, t = 0.
+
+    Parameters
+    ----------
+    eom : EquationsOfMotion
+    q0 : sequence (n,) or mapping q (Symbol or name) -> value
+        An equilibrium (e.g. an entry of `find_equilibria`); numbers or sympy expressions.
+    values : mapping parameter (Symbol or name) -> float, optional
+        None: M0, C0, K0 are sympy matrices. A mapping (``{}`` for the defaults): numpy arrays,
+        ``values`` overriding ``eom.parameter_values``.
+
+    Raises
+    ------
+    ValueError
+        Wrong q0 length or unknown coordinate; unknown or missing parameter; F not
+        differentiable at rest (``sign(u)`` friction, for instance).
+
+    Examples
+    --------
+    About the hanging pendulum, M0 = m l^2 and K0 = m g l: omega = sqrt(g / l) = 3.132092 rad/s;
+    about the standing one K0 = -m g l, unstable:
+
+    >>> import sympy as sp, sympy.physics.mechanics as me
+    >>> from lagcodegen import Model, derive_equations
+    >>> theta = me.dynamicsymbols("theta")
+    >>> m, g, l = sp.symbols("m g l", positive=True)
+    >>> pendulum = Model("pendulum", [theta], [m, g, l], kinetic_energy=m * l**2 * theta.diff()**2 / 2,
+    ...                  potential_energy=-m * g * l * sp.cos(theta),
+    ...                  parameter_values={"m": 1.0, "g": 9.81, "l": 1.0})
+    >>> eom = derive_equations(pendulum)
+    >>> from lagcodegen.statics.equilibria import linearize
+    >>> linearize(eom, [0.0]).K0
+    Matrix([[g*l*m]])
+    >>> hanging = linearize(eom, [0.0], {})
+    >>> round(float(hanging.natural_frequencies()[0]), 6), hanging.stable
+    (3.132092, True)
+    >>> linearize(eom, [3.141592653589793], {}).stable
+    False
+    """
+    point = coordinate_point(eom, q0)
+    at = {qi: sp.sympify(v) for qi, v in zip(eom.q, point)}
+    at[eom.t] = sp.S.Zero
+    rest = {ui: 0 for ui in eom.u}
+    C = _smooth(eom, -eom.forcing.jacobian(eom.u), eom.u).xreplace(rest)
+    K = _smooth(eom, -eom.forcing.xreplace(rest).jacobian(eom.q), eom.q)  # d/dq commutes with u = 0
+    mats = [sp.ImmutableMatrix(A.xreplace(at)) for A in (eom.mass_matrix, C, K)]
+    if values is None:
+        return LinearModel(tuple(eom.q), point, *mats)
+    vals = resolve_values(eom, values)
+    arrays = [np.array(substitute_values(eom, A, vals, f"linear model {name}").evalf(), dtype=float)
+              for A, name in zip(mats, ("M0", "C0", "K0"))]
+    numbers = {p: sp.Float(v) for p, v in vals.items()}
+    return LinearModel(tuple(eom.q), tuple(float(sp.sympify(v).xreplace(numbers)) for v in point), *arrays)
+
+
+def _smooth(eom: EquationsOfMotion, J: sp.Matrix, wrt: Sequence) -> sp.Matrix:
+    """J unchanged, or ValueError naming the first entry sympy could not differentiate smoothly."""
+    for (i, j), entry in sp.Matrix(J).todok().items():
+        if entry.has(sp.Derivative, sp.DiracDelta, sp.Subs):
+            raise ValueError(f"forcing F[{i}] of model {eom.name!r} is not differentiable in {wrt[j]} "
+                             f"at rest (non-smooth term such as Coulomb or rolling friction with sign()); "
+                             f"no linear model")
+    return J

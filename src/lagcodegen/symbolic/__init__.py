@@ -1,0 +1,1 @@
+"""Stage symbolic: Model -> EquationsOfMotion (one module per derivation route)."""

@@ -1,0 +1,59 @@
+"""Stage: Model -> EquationsOfMotion.
+
+Every derivation route returns the same target form, in generalized coordinates q (n) and
+generalized speeds u (n)::
+
+    qd = K(q, u, t)               kinematic equations (K = u for the Lagrange routes)
+    M(q, t) ud = F(q, u, t)       dynamic equations; M symmetric positive definite
+
+Lagrange II (energies route), with p = dT/du, never forming d/dt(dT/dqd) symbolically::
+
+    M = d2T/du2 (the Hessian of T in the speeds)
+    F = dT/dq - (dp/dq) u - dp/dt - dV/dq - dR/du + Q
+
+One module per route: `energies` (Lagrange II), `bodies` (d'Alembert-Lagrange, points and
+bodies), `sympy_models` (sympy's LagrangesMethod, KanesMethod, System); the pieces they share (the
+equations object, symbols, assembly) are in `equations`.
+"""
+from __future__ import annotations
+
+from ..model import ROUTE_BODIES, ROUTE_ENERGIES, ROUTE_SYMPY, Model, ModelError
+from .bodies import derive_from_bodies
+from .energies import derive_from_energies
+from .equations import EquationsOfMotion
+from .sympy_models import derive_from_sympy
+
+__all__ = ["EquationsOfMotion", "derive_equations", "ROUTES"]
+
+#: the derivation routes by `Model.route`: a new route is one module of this subpackage and one line here
+ROUTES = {
+    ROUTE_ENERGIES: derive_from_energies,
+    ROUTE_BODIES: derive_from_bodies,
+    ROUTE_SYMPY: derive_from_sympy,
+}
+
+
+def derive_equations(model: Model) -> EquationsOfMotion:
+    """Derive `EquationsOfMotion` from a validated `Model`, by its route.
+
+    Examples
+    --------
+    The mass on a spring gives M = m and F = -k x (m x'' = -k x):
+
+    >>> import sympy as sp, sympy.physics.mechanics as me
+    >>> from lagcodegen import Model
+    >>> x = me.dynamicsymbols("x")
+    >>> m, k = sp.symbols("m k", positive=True)
+    >>> model = Model("oscillator", [x], [m, k], kinetic_energy=m * x.diff()**2 / 2,
+    ...               potential_energy=k * x**2 / 2, parameter_values={"m": 1.0, "k": 4.0})
+    >>> from lagcodegen import derive_equations
+    >>> eom = derive_equations(model)
+    >>> eom.mass_matrix, eom.forcing
+    (Matrix([[m]]), Matrix([[-k*x]]))
+    """
+    try:
+        route = ROUTES[model.route]
+    except KeyError:
+        raise ModelError(f"model {model.name!r} has the route {model.route!r}, which no derivation "
+                         f"serves (routes: {', '.join(ROUTES)})") from None
+    return route(model)

@@ -1,0 +1,202 @@
+"""The equations object every derivation route returns, and the steps the routes share:
+plain symbols for q(t) and their speeds, the substitution into them, the mass-matrix checks and
+the assembly of `EquationsOfMotion` (points, holonomic constraints, Baumgarte parameters)."""
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import sympy as sp
+import sympy.physics.mechanics as me
+from sympy.core.function import AppliedUndef
+
+from ..model import ROUTE_BODIES, ROUTE_ENERGIES, TIME, Model, ModelError, check_declared, check_symbols_declared
+from .grouping import components
+from .holonomic import BAUMGARTE_ALPHA, BAUMGARTE_BETA, holonomic_terms
+
+ROUTE_TITLES = {
+    ROUTE_ENERGIES: "Lagrange II (energies)",
+    ROUTE_BODIES: "d'Alembert-Lagrange (points and bodies)",
+}
+
+
+@dataclass(frozen=True)
+class EquationsOfMotion:
+    """``qd = K(q, u, t)``, ``M(q, t) ud = F(q, u, t)``, in plain symbols.
+
+    Attributes
+    ----------
+    name, route : str
+    t : Symbol
+    coordinates, speeds : tuple
+        The dynamicsymbols q_i(t) and generalized speeds (qd_i(t), or Kane's u_i(t)).
+    q, u : tuple of Symbol, (n,)
+        Plain symbols standing for ``coordinates`` and ``speeds`` in every expression below.
+    parameters : tuple of Symbol
+    parameter_values : dict Symbol -> float (defaults; may be partial)
+    mass_matrix : ImmutableMatrix, (n, n), symmetric
+    forcing : ImmutableMatrix, (n, 1)
+    kinematics : ImmutableMatrix, (n, 1); qd = kinematics
+    kinetic_energy, potential_energy : Expr or None
+    points : tuple of (name, ImmutableMatrix (d, 1))
+    constraints : ImmutableMatrix (m, 1)
+        Holonomic constraints phi(q, t) = 0 (m = 0 without them). Then M ud = F - A^T lambda,
+        A = dphi/dq, with A ud = ``constraint_bias`` (gamma, Baumgarte terms included; their
+        parameters ``baumgarte_alpha``, ``baumgarte_beta`` default to 0); see `holonomic`.
+    constraint_jacobian : ImmutableMatrix (m, n)
+    constraint_rate : ImmutableMatrix (m, 1); dphi/dt
+    constraint_bias : ImmutableMatrix (m, 1); gamma
+    """
+
+    name: str
+    route: str
+    t: sp.Symbol
+    coordinates: tuple
+    speeds: tuple
+    q: tuple
+    u: tuple
+    parameters: tuple
+    parameter_values: dict
+    mass_matrix: sp.ImmutableMatrix
+    forcing: sp.ImmutableMatrix
+    kinematics: sp.ImmutableMatrix
+    kinetic_energy: Any
+    potential_energy: Any
+    points: tuple
+    constraints: sp.ImmutableMatrix = sp.ImmutableMatrix(0, 1, [])
+    constraint_jacobian: sp.ImmutableMatrix = sp.ImmutableMatrix(0, 0, [])
+    constraint_rate: sp.ImmutableMatrix = sp.ImmutableMatrix(0, 1, [])
+    constraint_bias: sp.ImmutableMatrix = sp.ImmutableMatrix(0, 1, [])
+
+    @property
+    def m(self) -> int:
+        """Number of holonomic constraints."""
+        return self.constraints.rows
+
+    @property
+    def n(self) -> int:
+        return len(self.q)
+
+    @property
+    def mass_matrix_full(self) -> sp.ImmutableMatrix:
+        """(2n, 2n) block diag(I, M) of the first-order form in x = (q, u)."""
+        n = self.n
+        full = sp.zeros(2 * n, 2 * n)
+        full[:n, :n] = sp.eye(n)
+        full[n:, n:] = self.mass_matrix
+        return sp.ImmutableMatrix(full)
+
+    @property
+    def forcing_full(self) -> sp.ImmutableMatrix:
+        """(2n, 1) right-hand side (K; F) of the first-order form."""
+        return sp.ImmutableMatrix.vstack(self.kinematics, self.forcing)
+
+    @property
+    def energy(self):
+        """Total mechanical energy T + V, or None when the route gives no energies."""
+        if self.kinetic_energy is None or self.potential_energy is None:
+            return None
+        return self.kinetic_energy + self.potential_energy
+
+    def to_dynamic(self, expr):
+        """Rewrite ``expr`` from plain symbols to dynamicsymbols (for display)."""
+        back = dict(zip(self.q, self.coordinates))
+        back.update(zip(self.u, self.speeds))
+        return sp.sympify(expr).xreplace(back)
+
+# -- symbols ----------------------------------------------------------------------------------
+def plain_symbols(coordinates, speeds, parameters) -> tuple[tuple, tuple]:
+    """Plain Symbols for q_i(t) (same name) and their speeds (name + '_d', or Kane's u name)."""
+    q = tuple(sp.Symbol(c.func.__name__) for c in coordinates)
+    u = tuple(sp.Symbol(s.func.__name__ if isinstance(s, AppliedUndef) else s.expr.func.__name__ + "_d")
+              for s in speeds)
+    taken = {p.name: "parameter" for p in parameters}
+    for sym in q + u:
+        if sym.name in taken:
+            raise ModelError(f"name {sym.name!r} is used by a {taken[sym.name]} and by a coordinate or speed")
+        taken[sym.name] = "coordinate or speed"
+    return q, u
+
+
+def make_substitution(coordinates, speeds, q, u, what: str, parameters=None) -> Callable:
+    """Return ``to_plain(expr)``: dynamicsymbols -> plain symbols, raising on leftovers and, when
+    ``parameters`` is given, on free symbols that are not parameters, t, q or u."""
+    table = dict(zip(speeds, u))  # Derivative(q(t), t) for the Lagrange routes, u(t) for Kane's
+    table.update(zip(coordinates, q))
+    allowed = None if parameters is None else set(parameters) | {TIME} | set(q) | set(u)
+
+    def to_plain(expr, where: str = what):
+        expr = sp.sympify(expr)
+        out = expr.xreplace(table)
+        left = [a for a in out.atoms(sp.Derivative, AppliedUndef)]
+        if left:
+            raise ModelError(f"{where} contains {', '.join(sorted(map(str, left)))}, which is not a "
+                             f"coordinate or a speed of this model")
+        if allowed is not None:
+            check_symbols_declared(where, out.free_symbols - allowed, parameters)
+        return out
+    return to_plain
+
+
+def lagrange_symbols(model: Model):
+    """Coordinates, speeds qd, their plain symbols q, u and the substitution into them."""
+    coords = model.coordinates
+    # the same Derivative objects c.diff(t) builds, without the cost of evaluating them
+    speeds = tuple(sp.Derivative(c, TIME, evaluate=False) for c in coords)
+    q, u = plain_symbols(coords, speeds, model.parameters)
+    return coords, speeds, q, u, make_substitution(coords, speeds, q, u, "model", model.parameters)
+
+def check_mass_matrix(M: sp.Matrix, coords, u) -> None:
+    for j, c in enumerate(coords):
+        if M[j, j] == 0:
+            raise ModelError(
+                f"coordinate {c.func.__name__!r} has no inertia: its speed does not appear in the kinetic "
+                f"energy, so the mass matrix is singular (row {j})")
+    speeds = set(u)
+    for (j, k), entry in M.todok().items():
+        if entry.free_symbols & speeds:
+            raise ModelError(
+                f"the kinetic energy is not quadratic in the speeds: M[{j},{k}] depends on "
+                f"{', '.join(sorted(map(str, entry.free_symbols & speeds)))}")
+
+
+# -- assembly ---------------------------------------------------------------------------------
+def _immutable(matrix) -> sp.ImmutableMatrix:
+    return matrix if isinstance(matrix, sp.ImmutableMatrix) else sp.ImmutableMatrix(matrix)
+
+
+def assemble(model, coords, speeds, q, u, M, F, K, T, V, to_plain, inputs_checked=False,
+             positions=None) -> EquationsOfMotion:
+    """The equations object; M and F are searched for undeclared symbols unless every input
+    went through a ``to_plain`` that checks them (``inputs_checked``). ``positions`` maps Points
+    whose components in the model's frame are already known (in plain symbols)."""
+    if not inputs_checked:
+        check_declared([("mass matrix", M), ("forcing", F)], model.parameters, (), extra=q + u)
+    points, positions = [], positions or {}
+    for name, where in model.points.items():
+        if isinstance(where, me.Point) and where in positions:
+            points.append((name, sp.ImmutableMatrix(positions[where])))
+            continue
+        if isinstance(where, me.Point):
+            pos = components(where.pos_from(model.origin), model.frame)
+        else:
+            pos = sp.Matrix(list(where) + [0] * (3 - len(where)))  # planar points get z = 0
+        points.append((name, sp.ImmutableMatrix(to_plain(pos, f"point {name!r}"))))
+    route = ROUTE_TITLES.get(model.route, model.route)
+    parameters, values, constrained = tuple(model.parameters), dict(model.parameter_values), {}
+    if model.constraints:
+        if list(K) != list(u):
+            raise ModelError("holonomic constraints need generalized speeds equal to the coordinate rates")
+        phi = sp.Matrix([to_plain(c, f"constraint {i}") for i, c in enumerate(model.constraints)])
+        terms = holonomic_terms(phi, q, u, TIME)
+        constrained = {"constraints": sp.ImmutableMatrix(phi), "constraint_jacobian": terms["A"],
+                       "constraint_rate": terms["phi_t"], "constraint_bias": terms["gamma"]}
+        parameters += (BAUMGARTE_ALPHA, BAUMGARTE_BETA)
+        values.update({BAUMGARTE_ALPHA: 0.0, BAUMGARTE_BETA: 0.0})
+        route += " with holonomic constraints (Lagrange I)"
+    return EquationsOfMotion(
+        name=model.name, route=route, t=TIME, coordinates=tuple(coords), speeds=tuple(speeds),
+        q=tuple(q), u=tuple(u), parameters=parameters, parameter_values=values,
+        mass_matrix=_immutable(M), forcing=_immutable(F), kinematics=_immutable(K),
+        kinetic_energy=T, potential_energy=V, points=tuple(points), **constrained)
