@@ -34,10 +34,10 @@ from pathlib import Path
 
 import numpy as np
 
-from lagcodegen.analysis import measures, figures
 from lagcodegen import catalog
-from lagcodegen.pipeline import compile_model
+from lagcodegen.analysis import figures, measures
 from lagcodegen.integrators.schemes import DEFAULT_METHODS, get_scheme
+from lagcodegen.pipeline import compile_model
 from lagcodegen.run.simulate import jacobian, parameter_vector, simulate, solve_reference
 
 DOCS = Path(__file__).resolve().parent
@@ -139,6 +139,7 @@ def finite_time_limit(method: str, steps: int, growth: float = measures.GROWTH_L
     if not getattr(scheme, "explicit", False):
         return measures.theoretical_stability_limit(method)
     import sympy as sp
+
     from lagcodegen.integrators.tableaux import Z
 
     R = sp.lambdify(Z, scheme.stability_polynomial(), "numpy")

@@ -21,7 +21,8 @@ from pathlib import Path
 import sympy as sp
 
 from lagcodegen.catalog import EXAMPLES
-from lagcodegen.codegen.reduce import momentum_obstacle, reduce_expressions
+from lagcodegen.codegen.outputs import applicable_methods, applicable_outputs
+from lagcodegen.codegen.reduce import reduce_expressions
 from lagcodegen.codegen.render import comment_text, render_sources, template_environment
 from lagcodegen.integrators.schemes import required_outputs
 from lagcodegen.symbolic.derive import EquationsOfMotion, derive_equations
@@ -69,14 +70,9 @@ def sample_state(eom: EquationsOfMotion) -> SampleState:
 def example_files(name: str) -> dict:
     """File name -> text for one catalog example (double and float kernels and their C tests)."""
     eom = derive_equations(EXAMPLES[name]())
-    methods = EXAMPLE_METHODS
-    if momentum_obstacle(eom) is not None:
-        methods = tuple(m for m in methods if m != "symplectic_euler")
-    if eom.m:  # constrained: explicit methods, multipliers and projection instead of the Jacobian
-        methods = tuple(m for m in methods if m == "rk4")
-    outputs = EXAMPLE_OUTPUTS + tuple(o for o in required_outputs(methods) if o not in EXAMPLE_OUTPUTS)
-    if eom.m:
-        outputs += ("constraints", "multipliers")
+    methods = applicable_methods(eom, EXAMPLE_METHODS)  # constrained: rk4, multipliers and projection
+    outputs = applicable_outputs(
+        eom, EXAMPLE_OUTPUTS + tuple(o for o in required_outputs(methods) if o not in EXAMPLE_OUTPUTS))
     system = reduce_expressions(eom, outputs)
     sample = sample_state(eom)
     files = {}

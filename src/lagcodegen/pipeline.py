@@ -27,8 +27,9 @@ from sympy.core.function import AppliedUndef
 
 from . import __version__
 from .codegen.lane_kernel import DEFAULT_LANES
+from .codegen.outputs import KernelError, applicable_methods, applicable_outputs
 from .codegen.printer import DEFAULT_TRIG
-from .codegen.reduce import KernelError, momentum_obstacle, reduce_expressions
+from .codegen.reduce import reduce_expressions
 from .codegen.render import CSources, KernelLayout, render_sources, template_dir
 from .integrators.schemes import DEFAULT_METHODS, required_outputs
 from .model import Model
@@ -94,16 +95,11 @@ def compile_model(model: Model | EquationsOfMotion, *, outputs=None, fixed: Mapp
     """
     eom = model if isinstance(model, EquationsOfMotion) else derive_equations(model)
     methods = tuple(methods)
-    defaulted = methods == DEFAULT_METHODS
-    if defaulted and momentum_obstacle(eom) is not None:
-        methods = tuple(m for m in methods if m != "symplectic_euler")  # not applicable: see momentum_obstacle
-    if defaulted and eom.m:
-        methods = tuple(m for m in methods if "jacobian" not in required_outputs([m]))  # no constrained Jacobian yet
+    if methods == DEFAULT_METHODS:  # the defaults that apply; a method asked for by name is checked instead
+        methods = applicable_methods(eom, methods)
     if outputs is None:
-        outputs = [o for o in SIMULATION_OUTPUTS
-                   if not (o == "energy" and eom.energy is None)
-                   and not (o == "jacobian" and ("jacobian" not in required_outputs(methods) or eom.m))]
-        outputs += ["constraints", "multipliers"] if eom.m else []
+        outputs = applicable_outputs(eom, [o for o in SIMULATION_OUTPUTS
+                                           if o != "jacobian" or o in required_outputs(methods)])
 
     outputs = list(outputs)
     outputs += [o for o in required_outputs(methods) if o not in outputs]  # the integrators' needs

@@ -19,7 +19,8 @@ import pytest
 import sympy as sp
 
 from lagcodegen import derive_equations
-from lagcodegen.codegen.reduce import DEFAULT_OUTPUTS, reduce_expressions
+from lagcodegen.codegen.outputs import DEFAULT_OUTPUTS
+from lagcodegen.codegen.reduce import reduce_expressions
 from lagcodegen.codegen.render import render_sources
 from lagcodegen.model import TIME, Model
 from lagcodegen.native.build import build_module

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import itertools
 
+import numpy as np
 import pytest
 
 from lagcodegen.integrators import schemes
@@ -54,3 +55,14 @@ def test_required_outputs_do_not_depend_on_the_order_of_the_methods():
 def test_unknown_method_is_named():
     with pytest.raises(KeyError, match="rk5"):
         required_outputs(("rk4", "rk5"))
+
+
+@pytest.mark.parametrize("name, limit", [("rk4", 2 * 2 ** 0.5), ("symplectic_euler", 2.0)])
+def test_each_scheme_judges_its_own_step(name, limit):
+    """The stability verdict lives in the scheme: an undamped mode w = 1 (eigenvalues +-i) is kept
+    just inside the imaginary-axis limit (RK4: 2 sqrt 2, Hairer-Wanner II, Sec. IV.2; symplectic
+    Euler: h w < 2, trace of its map 2 - (h w)^2) and flagged just outside, over a long run."""
+    scheme = schemes.get_scheme(name)
+    eigenvalues = np.array([1j, -1j])
+    assert scheme.unstable_step(0.99 * limit, eigenvalues, 10**6)[0] is False
+    assert scheme.unstable_step(1.01 * limit, eigenvalues, 10**6)[0] is True

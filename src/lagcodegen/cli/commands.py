@@ -89,16 +89,14 @@ def cmd_derive(args) -> int:
 
 def emit_request(args, eom) -> tuple[list, list, dict]:
     """(outputs, methods, fixed) of ``lagcodegen emit``, every name checked."""
-    from ..codegen.reduce import DEFAULT_OUTPUTS, OUTPUT_KERNELS
+    from ..codegen.outputs import DEFAULT_OUTPUTS, OUTPUTS, applicable_outputs
     from ..integrators.schemes import SCHEMES, required_outputs
 
     methods = parse_names(args.methods, "--methods", tuple(SCHEMES))
     if args.outputs is not None:
-        outputs = parse_names(args.outputs, "--outputs", tuple(OUTPUT_KERNELS))
+        outputs = parse_names(args.outputs, "--outputs", tuple(OUTPUTS))
     else:
-        outputs = [o for o in DEFAULT_OUTPUTS if not (o == "energy" and eom.energy is None)
-                   and not (o == "jacobian" and eom.m)]
-        outputs += ["constraints", "multipliers"] if eom.m else []
+        outputs = applicable_outputs(eom, DEFAULT_OUTPUTS)
     outputs += [o for o in required_outputs(methods) if o not in outputs]
     fixed = parse_assignments(args.fixed, "--fixed")
     parameters = [p.name for p in eom.parameters]

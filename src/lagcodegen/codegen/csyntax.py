@@ -17,7 +17,11 @@ def comment_text(text: str) -> str:
             .replace("\\n", "\\\\n").replace("\n", "\\n").replace("\r", "\\r"))
 
 
-def record(decl: str, doc: str, body: list, static: bool = False, hot: bool = False) -> dict:
-    """A C function for the templates; ``hot``: static and always inlined (LCG_HOT_INLINE)."""
+def record(result: str, name: str, arguments: str, doc: str, body: list, static: bool = False,
+           hot: bool = False) -> dict:
+    """A C function ``result name(arguments)`` for the templates, carrying its name (so the layout
+    lists the exported functions without reading declarations); ``hot``: static and always inlined
+    (LCG_HOT_INLINE)."""
     qualifier = "static LCG_HOT_INLINE " if hot else "static " if static else ""
-    return {"decl": qualifier + decl, "doc": doc, "body": body, "static": static or hot, "hot": hot}
+    return {"decl": f"{qualifier}{result} {name}({arguments})", "name": name, "doc": doc, "body": body,
+            "static": static or hot, "hot": hot}

@@ -89,9 +89,12 @@ def lane_context(system, names, real: str, methods: list, lanes: int, trig: str 
             steppers.append({"name": scheme.name, "id": number, "title": scheme.title or scheme.name,
                              "lines": _stage_lines(scheme, prefix, 2 * n * lanes)})
     has_energy = "energy" in system.outputs
-    decl = (f"int {prefix}_sweep_lanes(int method, long n_members, const {real} *x0s, const {real} *ps, {real} t0, "
-            f"{real} h, long n_steps, long stride, int track_energy, {real} *x_final, {real} *q_max, "
-            f"{real} *energy_error, int *status, long *steps_done, {real} *traj)")
+    prototype = _record("int", f"{prefix}_sweep_lanes",
+                        f"int method, long n_members, const {real} *x0s, const {real} *ps, {real} t0, "
+                        f"{real} h, long n_steps, long stride, int track_energy, {real} *x_final, {real} *q_max, "
+                        f"{real} *energy_error, int *status, long *steps_done, {real} *traj",
+                        f"Many independent members, {lanes} side by side (explicit Runge-Kutta "
+                        "methods only; returns LCG_UNKNOWN_METHOD for others).", [])
     context = {
         "has_lanes": True, "lanes": lanes, "lane_fast_trig": trig == "fast",
         "lane_sin": "lcg_sinf_fast" if real == "float" else "lcg_sin_fast",
@@ -101,10 +104,9 @@ def lane_context(system, names, real: str, methods: list, lanes: int, trig: str 
         "lane_dynamics": _dynamics_lines(system, names, printer, real, lanes), "lane_energy": [],
         "n_state_lanes": 2 * n * lanes, "n_lanes": n * lanes,
         "n_param_lanes": max(1, len(system.free_parameters)) * lanes,
-        "n_params_free": len(system.free_parameters), "sweep_lanes_decl": decl,
+        "n_params_free": len(system.free_parameters), "sweep_lanes_decl": prototype["decl"],
         "lane_history": 2 * n * lanes, "lane_history_per_lane": 2 * n,  # the monitor: previous, initial pivots
-        "lane_prototype": _record(decl, f"Many independent members, {lanes} side by side (explicit Runge-Kutta "
-                                        "methods only; returns LCG_UNKNOWN_METHOD for others).", []),
+        "lane_prototype": prototype,
     }
     if has_energy:
         kernel = system.kernel("energy")

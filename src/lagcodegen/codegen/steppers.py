@@ -101,25 +101,28 @@ def stepper_context(system, names, real: str, methods: list) -> dict:
                                        "work_macro": f"{prefix.upper()}_WORK_{scheme.name.upper()}",
                                        "work": record["work"]})
         context["exported"].append(_record(
-            f"int {prefix}_step_{scheme.name}({real} *t, {real} *x, const {real} *p, {real} h, {real} *work)",
+            "int", f"{prefix}_step_{scheme.name}", f"{real} *t, {real} *x, const {real} *p, {real} h, {real} *work",
             f"One step of {record['title']} (order {scheme.order}); work holds {record['work']} values, "
             f"the last {G} receive the pivots (gauge) of the state x it started from.", []))
     context["work_size"] = N + 2 * G + max(m["work"] for m in context["methods"])
-    decl = (f"int {prefix}_simulate(int method, {real} t0, const {real} *x0, const {real} *p, {real} h, "
-            f"long n_steps, long stride, int project, {real} *t_out, {real} *x_out, {real} *energy_out, "
-            f"{real} *points_out, {real} *residuals_out, {real} *multipliers_out, {real} *work, "
-            f"long *steps_done)")
-    context["simulate_decl"] = decl
-    context["exported"].append(_record(decl, "Fixed-step integration loop; returns a status code.", []))
-    sweep = (f"void {prefix}_sweep(int method, long n_members, const {real} *x0s, const {real} *ps, {real} t0, "
-             f"{real} h, long n_steps, long stride, int project, int track_energy, {real} *x_final, {real} *q_max, "
-             f"{real} *energy_error, int *status, long *steps_done, {real} *traj, {real} *work)")
-    context["sweep_decl"] = sweep
+    driver = _record("int", f"{prefix}_simulate",
+                     f"int method, {real} t0, const {real} *x0, const {real} *p, {real} h, "
+                     f"long n_steps, long stride, int project, {real} *t_out, {real} *x_out, {real} *energy_out, "
+                     f"{real} *points_out, {real} *residuals_out, {real} *multipliers_out, {real} *work, "
+                     f"long *steps_done", "Fixed-step integration loop; returns a status code.", [])
+    context["simulate_decl"] = driver["decl"]
+    context["exported"].append(driver)
+    sweep = _record("void", f"{prefix}_sweep",
+                    f"int method, long n_members, const {real} *x0s, const {real} *ps, {real} t0, "
+                    f"{real} h, long n_steps, long stride, int project, int track_energy, {real} *x_final, "
+                    f"{real} *q_max, {real} *energy_error, int *status, long *steps_done, {real} *traj, {real} *work",
+                    "Many independent members, one after another.", [])
+    context["sweep_decl"] = sweep["decl"]
     context["n_params_or_one"] = max(1, len(system.free_parameters))
     context["can_project"] = "constraints" in system.outputs
     context["records_constraints"] = "constraints" in system.outputs
     context["records_multipliers"] = "multipliers" in system.outputs
-    context["exported"].append(_record(sweep, "Many independent members, one after another.", []))
+    context["exported"].append(sweep)
     return context
 
 

@@ -6,7 +6,7 @@ Jacobian. The one non-RK scheme is symplectic (semi-implicit) Euler in momentum 
 p = M(q) u: ``M(q) v = p + h G(q, v)``, ``q+ = q + h v``, ``p+ = M(q) v`` with G = dL/dq + Q
 (Hairer-Lubich-Wanner, Geometric Numerical Integration, Thm. VI.3.3): symplectic for any M(q);
 for constant M it reduces to ``u+ = u + h ud(q, u)``, ``q+ = q + h u+``. It needs
-T = 1/2 u^T M(q) u (`reduce.momentum_obstacle` says when a model does not qualify).
+T = 1/2 u^T M(q) u (`codegen.outputs.momentum_obstacle` says when a model does not qualify).
 """
 from __future__ import annotations
 
@@ -45,6 +45,9 @@ class Scheme(Protocol):
 
     def imag_stability_limit(self) -> float: ...
 
+    def unstable_step(self, h: float, settled, n_steps: int) -> tuple[bool, str]: ...
+    # (unstable, its stability region in words) for the Jacobian's non-growing eigenvalues
+
 
 @dataclass(frozen=True)
 class SymplecticEuler:
@@ -64,6 +67,12 @@ class SymplecticEuler:
 
     def imag_stability_limit(self) -> float:
         return 2.0
+
+    def unstable_step(self, h: float, settled, n_steps: int) -> tuple[bool, str]:
+        """Its map on y'' = -w^2 y has |trace| < 2 only for h w < 2; past that a mode grows
+        geometrically whatever n_steps is."""
+        w = float(max(abs(complex(e)) for e in settled))
+        return h * w >= self.imag_stability_limit(), f"h*w < {self.imag_stability_limit():g}"
 
 
 SYMPLECTIC_EULER = SymplecticEuler()

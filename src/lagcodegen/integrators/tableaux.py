@@ -56,6 +56,16 @@ def _exact(value: Any, tableau: str, where: str) -> sp.Expr:
     return sp.Rational(value.numerator, value.denominator)
 
 
+_NUMERIC_STABILITY_FUNCTIONS: dict = {}  # coefficients -> numpy R(z); kept out of the (picklable) tableau
+
+
+def _numeric_stability_function(tableau):
+    key = (tableau.name, str(tableau.a), str(tableau.b))
+    if key not in _NUMERIC_STABILITY_FUNCTIONS:
+        _NUMERIC_STABILITY_FUNCTIONS[key] = sp.lambdify(Z, tableau.stability_polynomial(), "numpy")
+    return _NUMERIC_STABILITY_FUNCTIONS[key]
+
+
 @dataclass(frozen=True)
 class ButcherTableau:
     """A Runge-Kutta method ``(A, b, c)`` with exact coefficients and a declared order.
@@ -260,6 +270,19 @@ class ButcherTableau:
         P, Q = (p.as_expr() for p in self._stability_parts)
         modulus2 = lambda f: f.subs(Z, sp.I * _Y) * f.subs(Z, -sp.I * _Y)  # |f(iy)|^2, real coefficients
         return _stable_interval_end(sp.Poly(sp.expand(modulus2(P) - modulus2(Q)), _Y))
+
+    def amplification(self, h_lambda: np.ndarray) -> np.ndarray:
+        """|R(h lambda)| per eigenvalue: the growth of each linear mode in one step."""
+        with np.errstate(over="ignore", invalid="ignore"):  # a huge h*lambda overflows R: unstable
+            return np.abs(_numeric_stability_function(self)(h_lambda))
+
+    def unstable_step(self, h: float, settled: np.ndarray, n_steps: int) -> tuple[bool, str]:
+        """(unstable, the region in words): the step h amplifies the non-growing modes ``settled``
+        (eigenvalues with Re <= 0 of the Jacobian) more than tenfold over ``n_steps`` steps."""
+        growth = float(np.max(self.amplification(h * settled)))
+        unstable = not growth <= 1 + 1e-12 and not n_steps * math.log(growth) <= math.log(10.0)
+        return unstable, (f"h*w < {self.imag_stability_limit():.4g} on the imaginary axis, "
+                          f"{self.real_stability_limit():.4g} on the negative real axis")
 
     # -- display ---------------------------------------------------------------------------
     def _cells(self) -> tuple[list[list[str]], list[str]]:

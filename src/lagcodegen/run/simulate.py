@@ -10,11 +10,10 @@ import numbers
 import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
-from functools import cache
 
 import numpy as np
 
-from ..integrators.schemes import KIND_SYMPLECTIC_EULER, get_scheme
+from ..integrators.schemes import get_scheme
 from ..native.build import CompiledSystem
 from ..status import Status
 from .arguments import (  # noqa: F401
@@ -391,30 +390,13 @@ def warn_if_unstable(system: CompiledSystem, x, p, h: float, method: str, t: flo
     if settled.size == 0:
         return False
     w = float(np.max(np.abs(settled)))
-    if scheme.stepper == KIND_SYMPLECTIC_EULER:
-        unstable = h * w >= scheme.imag_stability_limit()
-        limit = f"h*w < {scheme.imag_stability_limit():g}"
-    else:
-        with np.errstate(over="ignore", invalid="ignore"):  # a huge h*w overflows R: unstable
-            growth = float(np.max(np.abs(_stability_function(method)(h * settled))))
-        unstable = not growth <= 1 + 1e-12 and not n_steps * math.log(growth) <= math.log(10.0)
-        limit = (f"h*w < {scheme.imag_stability_limit():.4g} on the imaginary axis, "
-                 f"{scheme.real_stability_limit():.4g} on the negative real axis")
+    unstable, limit = scheme.unstable_step(h, settled, n_steps)
     if unstable:
         warnings.warn(
             f"step h = {h:g} with the largest frequency w = {w:.6g} rad/s of the Jacobian at the "
             f"initial state gives h*w = {h * w:.4g}, outside {method}'s stability region ({limit}); "
             f"the run will likely blow up: reduce h or use an implicit method", StabilityWarning, stacklevel=3)
     return unstable
-
-
-@cache
-def _stability_function(method: str):
-    import sympy as sp
-
-    from ..integrators.tableaux import Z
-
-    return sp.lambdify(Z, get_scheme(method).stability_polynomial(), "numpy")
 
 
 def solve_reference(system: CompiledSystem, x0, t_eval, *, params: Mapping | None = None, t0: float = 0.0,

@@ -1,0 +1,500 @@
+"""Helper: the output registry. Every C output function is one `Output` entry here: the reduced
+kernel that computes it (its symbolic rows, CSE'd together), when it applies to a model, and how
+its C body is written. `reduce.py` and `render.py` read these tables; nothing else switches on an
+output's name. A new output is one kernel (if it needs new rows), one writer and one entry.
+
+Labels of the rows are (block, i, j): ("M", j, k) lower triangle of M, ("F", j, 0), ("K", j, 0),
+("E", 0, 0), ("P", point, component); ("G", j, c) = dG_j/dx_c for G = M a - F (a the
+accelerations) and ("DK", j, c) in the jacobian kernel; ("G", j, 0) = dL/dq_j + Q_j in the
+momentum kernel; ("A", i, j) = dphi_i/dq_j, ("C", i, 0) = gamma_i, ("R", i, 0) = phi_i and
+("T", i, 0) = dphi_i/dt for the constraints.
+"""
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import sympy as sp
+
+from ..symbolic.equations import EquationsOfMotion
+from .csyntax import comment_text, literal, record
+from .kernel_text import KernelWriter, results
+from .ldlt import ldlt_factor_lines, ldlt_substitution_lines
+from .steppers import hot_dynamics
+
+
+class KernelError(ValueError):
+    """Kernel request inconsistent with the equations; the message names the culprit."""
+
+
+# -- symbolic rows, one function per reduced kernel ----------------------------------------------
+def _mass_rows(eom: EquationsOfMotion) -> list:
+    M = eom.mass_matrix
+    return [(("M", j, k), M[j, k]) for j in range(eom.n) for k in range(j + 1)]
+
+
+def _forcing_rows(eom: EquationsOfMotion) -> list:
+    return [(("F", j, 0), eom.forcing[j]) for j in range(eom.n)]
+
+
+def _dynamics_rows(eom: EquationsOfMotion, accelerations) -> list:
+    kinematics = [] if list(eom.kinematics) == list(eom.u) else \
+        [(("K", j, 0), eom.kinematics[j]) for j in range(eom.n)]
+    return kinematics + _mass_rows(eom) + _forcing_rows(eom) + _constraint_rows(eom, with_bias=True)
+
+
+def _constraint_rows(eom: EquationsOfMotion, with_bias: bool) -> list:
+    """("A", i, j) = dphi_i/dq_j and then ("C", i, 0) = gamma_i (dynamics) or ("R", i, 0) = phi_i,
+    ("T", i, 0) = dphi_i/dt (residuals and projection)."""
+    m, n = eom.m, eom.n
+    rows = [(("A", i, j), eom.constraint_jacobian[i, j]) for i in range(m) for j in range(n)]
+    if with_bias:
+        return rows + [(("C", i, 0), eom.constraint_bias[i]) for i in range(m)]
+    return rows + [(("R", i, 0), eom.constraints[i]) for i in range(m)] + \
+        [(("T", i, 0), eom.constraint_rate[i]) for i in range(m)]
+
+
+def _jacobian_rows(eom: EquationsOfMotion, a) -> list:
+    """M, then d/dx of G = M(q, t) a - F(q, u, t) (and of K when qd != u), x = (q, u).
+
+    With a = ud the Jacobian of the first-order right-hand side is
+    [[dK/dq, dK/du], [-M^-1 dG/dq, -M^-1 dG/du]] (Hairer-Wanner II, sec. VI.1 for the index-1 form).
+    """
+    n = eom.n
+    x = list(eom.q) + list(eom.u)
+    G = [sp.Add(*[eom.mass_matrix[j, k] * a[k] for k in range(n) if eom.mass_matrix[j, k] != 0]) - eom.forcing[j]
+         for j in range(n)]
+    rows = [(("G", j, c), _classical(G[j].diff(xc))) for j in range(n) for c, xc in enumerate(x)]
+    if list(eom.kinematics) != list(eom.u):
+        rows += [(("DK", j, c), _classical(eom.kinematics[j].diff(xc))) for j in range(n) for c, xc in enumerate(x)]
+    return _mass_rows(eom) + rows
+
+
+def _classical(derivative):
+    """Drop DiracDelta from d sign(u)/du (Coulomb, rolling friction): the Jacobian off the switch."""
+    switch = lambda e: isinstance(e, sp.DiracDelta) or (  # noqa: E731
+        isinstance(e, sp.Derivative) and isinstance(e.expr, sp.sign))
+    if not derivative.has(sp.DiracDelta, sp.Derivative):
+        return derivative
+    return derivative.replace(switch, lambda e: sp.S.Zero)
+
+
+def _momentum_rows(eom: EquationsOfMotion) -> list:
+    """M, then G = dL/dq + Q = F + sum_kl dM_jl/dq_k u_k u_l (for T = 1/2 u^T M(q) u, p = M u)."""
+    n, q, u = eom.n, eom.q, eom.u
+    M = eom.mass_matrix
+    rows = []
+    for j in range(n):
+        transport = [M[j, l].diff(q[k]) * u[k] * u[l]
+                     for l in range(n) if M[j, l] != 0 for k in range(n) if q[k] in M[j, l].free_symbols]
+        rows.append((("G", j, 0), eom.forcing[j] + sp.Add(*transport)))
+    return _mass_rows(eom) + rows
+
+
+def _point_rows(eom: EquationsOfMotion) -> list:
+    return [(("P", i, c), pos[c]) for i, (_, pos) in enumerate(eom.points) for c in range(len(pos))]
+
+
+#: reduced kernel -> its rows (eom, acceleration symbols); the outputs sharing a kernel share its CSE
+KERNEL_ROWS: dict[str, Callable] = {
+    "mass_matrix": lambda eom, a: _mass_rows(eom),
+    "forcing": lambda eom, a: _forcing_rows(eom),
+    "dynamics": lambda eom, a: _dynamics_rows(eom, a),
+    "constraints": lambda eom, a: _constraint_rows(eom, with_bias=False),
+    "energy": lambda eom, a: [(("E", 0, 0), eom.energy)],
+    "jacobian": _jacobian_rows,
+    "momentum": lambda eom, a: _momentum_rows(eom),
+    "points": lambda eom, a: _point_rows(eom),
+}
+
+
+# -- when an output applies ----------------------------------------------------------------------
+def momentum_obstacle(eom: EquationsOfMotion) -> str | None:
+    """Why the momentum form p = M(q) u does not describe ``eom`` (None when it does).
+
+    Symplectic Euler in (q, p) needs T = 1/2 u^T M(q) u: no explicit t in M, no term linear in the
+    speeds (moving frames, gyroscopic couplings), and qd = u.
+    """
+    from ..symbolic.quadratic_forms import NotQuadratic, quadratic_terms
+
+    if eom.m:
+        return "it has holonomic constraints (its multipliers are not in the momentum form)"
+    if list(eom.kinematics) != list(eom.u):
+        return "its generalized speeds are not the coordinate rates (qd != u)"
+    if eom.t in eom.mass_matrix.free_symbols:
+        return "its mass matrix depends on time"
+    if eom.kinetic_energy is None:
+        return "it gives no kinetic energy to check that T = 1/2 u^T M u"
+    try:
+        terms = quadratic_terms(eom.kinetic_energy, eom.u, eom.parameters)
+    except NotQuadratic:
+        return "its kinetic energy is not quadratic in the speeds"
+    linear = sp.Add(*[w * e for key, w, e in terms if len(key) == 1])
+    if linear != 0:
+        return "its kinetic energy has terms linear in the speeds (p != M u)"
+    return None
+
+
+def _energy_obstacle(eom: EquationsOfMotion) -> str | None:
+    if eom.energy is None:
+        return f"model {eom.name!r} has no energies (route {eom.route}); drop 'energy'"
+    return None
+
+
+def _needs_constraints(output: str) -> Callable[[EquationsOfMotion], str | None]:
+    def obstacle(eom: EquationsOfMotion) -> str | None:
+        return None if eom.m else f"output {output!r} needs holonomic constraints; model {eom.name!r} has none"
+    return obstacle
+
+
+def _jacobian_obstacle(eom: EquationsOfMotion) -> str | None:
+    if eom.m:
+        return (f"the jacobian output (implicit methods) is not available for the constrained model "
+                f"{eom.name!r} yet; use an explicit method")
+    return None
+
+
+def _momentum_obstacle_message(eom: EquationsOfMotion) -> str | None:
+    reason = momentum_obstacle(eom)
+    if reason is None:
+        return None
+    return f"the momentum output (symplectic Euler) does not apply to {eom.name!r}: {reason}"
+
+
+# -- C bodies, one writer per output --------------------------------------------------------------
+def _mass_matrix_c(w: KernelWriter, kernel) -> dict:
+    n = w.n
+    body = w.head(kernel) + ["/* Mass matrix, lower triangle, mirrored */"]
+    for (j, k), expr in results(kernel, "M").items():
+        body.append(f"M[{j * n + k}] = {w.expr(expr, f'M[{j}][{k}]')};  /* M[{j}][{k}] */")
+        if j != k:
+            body.append(f"M[{k * n + j}] = M[{j * n + k}];  /* M[{k}][{j}] */")
+    return record("void", f"{w.prefix}_mass_matrix", f"{w.arguments}, {w.real} *M",
+                  f"Mass matrix M(q, t), row-major {n} x {n}.", body)
+
+
+def _forcing_c(w: KernelWriter, kernel) -> dict:
+    body = w.head(kernel) + ["/* Forcing */"]
+    for (j, _), expr in results(kernel, "F").items():
+        body.append(f"F[{j}] = {w.expr(expr, f'F[{j}]')};")
+    return record("void", f"{w.prefix}_forcing", f"{w.arguments}, {w.real} *F", f"Forcing F(q, u, t), {w.n} values.",
+                  body)
+
+
+def _accel_c(w: KernelWriter, kernel) -> dict:
+    n, prefix = w.n, w.prefix
+    body = [f"{w.real} qd[{n}];", f"return {prefix}_finite_result({prefix}_dynamics(t, x, p, qd, ud, 0), ud, {n});"]
+    return record("int", f"{prefix}_accel", f"{w.arguments}, {w.real} *ud",
+                  "Generalized accelerations ud solving M ud = F; returns a status code.", body)
+
+
+def _rhs_c(w: KernelWriter, kernel) -> dict:
+    n, prefix = w.n, w.prefix
+    body = [f"return {prefix}_finite_result({prefix}_dynamics(t, x, p, xdot, xdot + {n}, 0), xdot, {2 * n});"]
+    return record("int", f"{prefix}_rhs", f"{w.arguments}, {w.real} *xdot",
+                  f"First-order right-hand side xdot = f(t, x), x = (q, u), {2 * n} values; "
+                  "returns a status code. xdot must not alias x.", body)
+
+
+def _energy_c(w: KernelWriter, kernel) -> dict:
+    body = w.head(kernel)
+    body.append(f"return {w.expr(results(kernel, 'E')[(0, 0)], 'energy')};")
+    return record(w.real, f"{w.prefix}_energy", w.arguments, "Total mechanical energy T + V.", body)
+
+
+def _points_c(w: KernelWriter, kernel) -> dict:
+    names = w.system.point_names
+    body = w.head(kernel) + ["/* Point positions (x, y, z) */"]
+    for (i, c), expr in results(kernel, "P").items():
+        body.append(f"out[{3 * i + c}] = {w.expr(expr, f'point {names[i]}')};  "
+                    f"/* {comment_text(names[i])}.{'xyz'[c]} */")
+    return record("void", f"{w.prefix}_points", f"{w.arguments}, {w.real} *out",
+                  f"Positions of {len(names)} named points, 3 values each.", body)
+
+
+def _jacobian_c(w: KernelWriter, kernel) -> dict:
+    """J = df/dx of the first-order system: [[dK/dq, dK/du], [-M^-1 dG/dq, -M^-1 dG/du]]."""
+    n, prefix, real = w.n, w.prefix, w.real
+    size = 2 * n
+    body = [f"{real} qd[{n}];", f"{real} ud[{n}];", f"{real} B[{n}][{size}];", "int c;",
+            f"const int status = {prefix}_dynamics(t, x, p, qd, ud, 0);",
+            "if (status != LCG_OK) return status;"]
+    body += w.head(kernel, touches_state=True)
+    M = results(kernel, "M")
+    body.append("/* Mass matrix, lower triangle */")
+    for (j, k), expr in M.items():
+        if expr != 0 or j == k:
+            body.append(f"const {real} M_{j}_{k} = {w.expr(expr, f'M[{j}][{k}]')};")
+    body.append("/* B = -dG/dx, G = M ud - F */")
+    for (j, c), expr in results(kernel, "G").items():
+        value = f"-({w.expr(expr, f'dG[{j}]/dx[{c}]')})" if expr != 0 else literal(0, real)
+        body.append(f"B[{j}][{c}] = {value};")
+    body.append("/* Kinematic rows dK/dx */")
+    DK = results(kernel, "DK")
+    for j in range(n):
+        for c in range(size):
+            if DK:
+                value = w.expr(DK[(j, c)], f"dK[{j}]/dx[{c}]")
+            else:
+                value = literal(1 if c == n + j else 0, real)
+            body.append(f"J[{j * size + c}] = {value};")
+    factor, LD = ldlt_factor_lines(n, {jk for jk, e in M.items() if e != 0}, real, f"{prefix}_pivot_failure(x)")
+    body += factor
+    body.append(f"for (c = 0; c < {size}; ++c) {{")
+    solve = ldlt_substitution_lines(n, LD, real, lambda i: f"B[{i}][c]",
+                                    lambda i: f"J[{(n + i) * size} + c]")
+    body += ["    " + line for line in solve]
+    body += ["}", f"return {prefix}_finite_result(LCG_OK, J, {size * size});"]
+    return record("int", f"{prefix}_jacobian", f"{w.arguments}, {real} *J",
+                  f"Jacobian df/dx of the first-order right-hand side, row-major {size} x {size}; "
+                  "returns a status code.", body)
+
+
+def _multipliers_c(w: KernelWriter, kernel) -> dict:
+    n, prefix, real, m = w.n, w.prefix, w.real, w.system.n_constraints
+    body = [f"{real} qd[{n}], ud[{n}];",
+            f"const int status = {prefix}_dynamics_constrained(t, x, p, qd, ud, lam, Q, 0);",
+            f"return {prefix}_finite_result(status, lam, {m});"]
+    return record("int", f"{prefix}_multipliers", f"{w.arguments}, {real} *lam, {real} *Q",
+                  f"Multipliers lam ({m}) and generalized constraint forces "
+                  f"Q = A^T lam ({n}, or NULL): M ud = F - A^T lam.", body)
+
+
+def _constraints_c(w: KernelWriter, kernel) -> dict:
+    n, m, real = w.n, w.system.n_constraints, w.real
+    body = w.head(kernel) + ["/* phi, A = dphi/dq, dphi/dt */"]
+    body += [f"phi[{i}] = {w.expr(e, f'phi[{i}]')};" for (i, _), e in results(kernel, "R").items()]
+    body += [f"A[{i * n + j}] = {w.expr(e, f'dphi[{i}]/dq[{j}]')};" for (i, j), e in results(kernel, "A").items()]
+    body += [f"phi_t[{i}] = {w.expr(e, f'dphi[{i}]/dt')};" for (i, _), e in results(kernel, "T").items()]
+    return record("void", f"{w.prefix}_constraint_terms", f"{w.arguments}, {real} *phi, {real} *A, {real} *phi_t",
+                  f"Constraints phi ({m}), their Jacobian A = dphi/dq (row-major {m} x {n}) and dphi/dt ({m}).",
+                  body)
+
+
+def _constraints_template_functions(w: KernelWriter) -> list:
+    """Prototypes of the residual and projection functions the templates write from the constraint terms."""
+    real, m = w.real, w.system.n_constraints
+    return [record("void", f"{w.prefix}_residuals", f"{real} t, const {real} *x, const {real} *p, {real} *out",
+                   f"Constraint residuals: phi ({m}), then A u + dphi/dt ({m}).", []),
+            record("int", f"{w.prefix}_project", f"{real} t, {real} *x, const {real} *p",
+                   "Project x onto the constraint manifold (positions, then speeds); returns a status code.", [])]
+
+
+def _momentum_c(w: KernelWriter, kernel) -> dict:
+    n = w.n
+    body = w.head(kernel) + ["/* Mass matrix, lower triangle, mirrored */"]
+    for (j, k), expr in results(kernel, "M").items():
+        body.append(f"M[{j * n + k}] = {w.expr(expr, f'M[{j}][{k}]')};")
+        if j != k:
+            body.append(f"M[{k * n + j}] = M[{j * n + k}];")
+    body.append("/* G = dL/dq + Q */")
+    body += [f"G[{j}] = {w.expr(expr, f'G[{j}]')};" for (j, _), expr in results(kernel, "G").items()]
+    return record("void", f"{w.prefix}_momentum", f"{w.arguments}, {w.real} *M, {w.real} *G",
+                  f"M(q) (row-major {n} x {n}) and G = dL/dq + Q, for symplectic Euler in p = M u.", body)
+
+
+# -- the registry ---------------------------------------------------------------------------------
+def _applies(eom: EquationsOfMotion) -> str | None:
+    return None
+
+
+@dataclass(frozen=True)
+class Output:
+    """One C output function.
+
+    ``kernel`` names its rows in `KERNEL_ROWS`; ``write`` returns its C function record;
+    ``obstacle`` says why it does not apply to a model (None when it does); ``empty`` is True for
+    a model that gives it nothing to compute (it is then left out silently); ``checked``: it
+    returns a status after checking its values are finite; ``calls_dynamics``: its body calls the
+    unconstrained-form solve ``<prefix>_dynamics``; ``template_functions``: functions the
+    templates write for it (declared with it); ``default``: in `DEFAULT_OUTPUTS`;
+    ``constrained``: every constrained model gets it.
+    """
+
+    name: str
+    kernel: str
+    write: Callable[[KernelWriter, object], dict]
+    obstacle: Callable[[EquationsOfMotion], str | None] = _applies
+    empty: Callable[[EquationsOfMotion], bool] = lambda eom: False
+    checked: bool = False
+    calls_dynamics: bool = False
+    template_functions: Callable[[KernelWriter], list] = lambda w: []
+    default: bool = False
+    constrained: bool = False
+
+
+OUTPUTS: dict[str, Output] = {o.name: o for o in (
+    Output("mass_matrix", "mass_matrix", _mass_matrix_c, default=True),
+    Output("forcing", "forcing", _forcing_c, default=True),
+    Output("accel", "dynamics", _accel_c, checked=True, calls_dynamics=True, default=True),
+    Output("rhs", "dynamics", _rhs_c, checked=True, calls_dynamics=True, default=True),
+    Output("energy", "energy", _energy_c, obstacle=_energy_obstacle, default=True),
+    Output("points", "points", _points_c, empty=lambda eom: not eom.points, default=True),
+    Output("jacobian", "jacobian", _jacobian_c, obstacle=_jacobian_obstacle, checked=True, calls_dynamics=True,
+           default=True),
+    Output("momentum", "momentum", _momentum_c, obstacle=_momentum_obstacle_message),
+    Output("constraints", "constraints", _constraints_c, obstacle=_needs_constraints("constraints"),
+           template_functions=_constraints_template_functions, constrained=True),
+    Output("multipliers", "dynamics", _multipliers_c, obstacle=_needs_constraints("multipliers"), checked=True,
+           constrained=True),
+)}
+DEFAULT_OUTPUTS = tuple(name for name, o in OUTPUTS.items() if o.default)
+
+
+def checked_outputs(eom: EquationsOfMotion, outputs) -> list:
+    """``outputs`` without repeats or empty ones; KernelError for an unknown or inapplicable one."""
+    chosen = []
+    for name in outputs:
+        if name not in OUTPUTS:
+            raise KernelError(f"unknown output {name!r}; choose from {', '.join(OUTPUTS)}")
+        output = OUTPUTS[name]
+        if output.empty(eom):
+            continue
+        reason = output.obstacle(eom)
+        if reason is not None:
+            raise KernelError(reason)
+        if name not in chosen:
+            chosen.append(name)
+    if not chosen:
+        raise KernelError("no outputs requested")
+    return chosen
+
+
+def applicable_outputs(eom: EquationsOfMotion, wanted) -> list:
+    """The outputs of ``wanted`` that apply to ``eom``, then those every model of its kind gets
+    (constraint terms and multipliers of a constrained model)."""
+    chosen = [name for name in wanted if OUTPUTS[name].obstacle(eom) is None]
+    if eom.m:
+        chosen += [name for name, o in OUTPUTS.items() if o.constrained and name not in chosen]
+    return chosen
+
+
+def applicable_methods(eom: EquationsOfMotion, methods) -> tuple:
+    """The methods of ``methods`` whose outputs all apply to ``eom`` (no symplectic Euler without
+    the momentum form, no implicit method for a constrained model yet)."""
+    from ..integrators.schemes import get_scheme
+
+    return tuple(m for m in methods if all(OUTPUTS[o].obstacle(eom) is None for o in get_scheme(m).outputs))
+
+
+# -- the static functions the outputs share -------------------------------------------------------
+def support_functions(w: KernelWriter) -> list:
+    """Static C functions the requested outputs call, in the order the source defines them."""
+    outputs = [OUTPUTS[name] for name in w.system.outputs]
+    functions = []
+    if any(o.checked for o in outputs):
+        functions.append(_finite_result_function(w))
+    if any(o.kernel == "dynamics" for o in outputs):
+        functions += _dynamics_functions(w)
+        if w.system.n_constraints and any(o.calls_dynamics for o in outputs):
+            m, prefix, real = w.system.n_constraints, w.prefix, w.real
+            functions.append(record(
+                "int", f"{prefix}_dynamics",
+                f"{real} t, const {real} *x, const {real} *p, {real} *qd, {real} *ud, {real} *gauge",
+                "qd and ud of the constrained system (gauge: see dynamics_constrained).",
+                [f"{real} lam[{m}];", f"return {prefix}_dynamics_constrained(t, x, p, qd, ud, lam, 0, gauge);"],
+                static=True))
+    return functions
+
+
+def _finite_result_function(w: KernelWriter) -> dict:
+    """A finite state can still give NaN or infinite derivatives (F overflowing for a huge
+    parameter, 0 * inf): the public kernels report that instead of LCG_OK. The drivers' own
+    steps are checked on the new state, so the steppers do not pay for this."""
+    return record("int", f"{w.prefix}_finite_result", f"int status, const {w.real} *values, int count",
+                  "status, or LCG_NONFINITE_STATE when status is LCG_OK but a value is NaN or infinite.",
+                  ["int i;", "if (status != LCG_OK) return status;",
+                   "for (i = 0; i < count; ++i) {", "    if (!isfinite(values[i])) return LCG_NONFINITE_STATE;",
+                   "}", "return LCG_OK;"], static=True)
+
+
+def _dynamics_functions(w: KernelWriter) -> list:
+    """Static kernel behind accel and rhs: K, M, F with joint CSE, then an unrolled LDL^T solve
+    (with an always-inlined copy for the explicit steppers when it is small, `hot_dynamics`)."""
+    system, real, prefix, n = w.system, w.real, w.prefix, w.n
+    kernel = system.kernel("dynamics")
+    body = w.head(kernel, touches_state=system.kinematics_identity)
+    M = results(kernel, "M")
+    body.append("/* Mass matrix, lower triangle */")
+    for (j, k), expr in M.items():
+        if expr != 0 or j == k:  # structural zeros are skipped by the factorization too
+            body.append(f"const {real} M_{j}_{k} = {w.expr(expr, f'M[{j}][{k}]')};")
+    body.append("/* Forcing */")
+    for (j, _), expr in results(kernel, "F").items():
+        body.append(f"const {real} F_{j} = {w.expr(expr, f'F[{j}]')};")
+    body.append("/* Kinematics qd = K(q, u, t) */")
+    if system.kinematics_identity:
+        body += [f"qd[{j}] = x[{n + j}];" for j in range(n)]
+    else:
+        body += [f"qd[{j}] = {w.expr(expr, f'qd[{j}]')};" for (j, _), expr in results(kernel, "K").items()]
+    nonzero = {jk for jk, e in M.items() if e != 0}
+    failure = f"{prefix}_pivot_failure(x)"
+    m = system.n_constraints
+    arguments = f"{real} t, const {real} *x, const {real} *p, {real} *qd, {real} *ud"
+    if not m:
+        factor, LD = ldlt_factor_lines(n, nonzero, real, failure)
+        body += factor + _gauge_lines(n) + ldlt_substitution_lines(n, LD, real, lambda i: f"F_{i}",
+                                                                    lambda i: f"ud[{i}]")
+        body.append("return LCG_OK;")
+        arguments += f", {real} *gauge"
+        doc = ("K, M and F with shared temporaries, then M ud = F by LDL^T; gauge (or NULL) receives the "
+               f"{n} pivots of M (the singularity monitor of the drivers).")
+        if not hot_dynamics(system):
+            return [record("int", f"{prefix}_dynamics", arguments, doc, body, static=True)]
+        return [record("int", f"{prefix}_dynamics_hot", arguments,
+                       doc[:-1] + "; inlined into every explicit Runge-Kutta stage.", body, hot=True),
+                record("int", f"{prefix}_dynamics", arguments, "The same, as one function for the other callers.",
+                       [f"return {prefix}_dynamics_hot(t, x, p, qd, ud, gauge);"], static=True)]
+    body += _constrained_solve_lines(w, kernel, nonzero, failure)
+    return [record("int", f"{prefix}_dynamics_constrained",
+                   f"{arguments}, {real} *lam, {real} *Q, {real} *gauge",
+                   "K, M, F, A = dphi/dq and gamma with shared temporaries; M ud + A^T lam = F, A ud = gamma "
+                   "by the range-space method (LDL^T of M, Cholesky of A M^-1 A^T); Q = A^T lam if not NULL; "
+                   f"gauge (or NULL) receives the {n} pivots of M, the {m} of A M^-1 A^T and A "
+                   "(the singularity monitor of the drivers).",
+                   body, static=True)]
+
+
+def _gauge_lines(n: int, indent: bool = True) -> list:
+    """Store the LDL^T pivots D_j of M into gauge[j] (when gauge is not NULL): the drivers' singularity
+    monitor compares them between accepted states (`steppers.gauge_context`)."""
+    stores = [f"gauge[{j}] = D_{j};" for j in range(n)]
+    if not indent:
+        return stores
+    return ["if (gauge) {  /* pivots of M, for the drivers' singularity monitor */"] + \
+        ["    " + line for line in stores] + ["}"]
+
+
+def _constrained_solve_lines(w: KernelWriter, kernel, nonzero, failure) -> list:
+    real, n, m, prefix = w.real, w.n, w.system.n_constraints, w.prefix
+    body = [f"{real} A[{m * n}], C[{m}], z[{n}], Y[{n * m}];", "int c, i;", "/* A = dphi/dq, gamma */"]
+    for (i, j), expr in results(kernel, "A").items():
+        body.append(f"A[{i * n + j}] = {w.expr(expr, f'dphi[{i}]/dq[{j}]')};")
+    for (i, _), expr in results(kernel, "C").items():
+        body.append(f"C[{i}] = {w.expr(expr, f'gamma[{i}]')};")
+    factor, LD = ldlt_factor_lines(n, nonzero, real, failure)
+    body += factor + ldlt_substitution_lines(n, LD, real, lambda i: f"F_{i}", lambda i: f"z[{i}]")
+    body.append(f"for (c = 0; c < {m}; ++c) {{  /* Y = M^-1 A^T */")
+    body += ["    " + line for line in ldlt_substitution_lines(
+        n, LD, real, lambda i: f"A[c * {n} + {i}]", lambda i: f"Y[{i * m} + c]")]
+    body += ["}",
+             f"c = {prefix}_multipliers_solve(A, Y, z, C, lam, gauge ? gauge + {n} : 0);",
+             "if (c != 1) return c == 0 ? LCG_SINGULAR_CONSTRAINTS : LCG_NONFINITE_STATE;",
+             "if (gauge) {  /* after the solves: a failed step leaves the last accepted gauge */"]
+    body += ["    " + line for line in _gauge_lines(n, indent=False)]
+    body += [f"    for (i = 0; i < {m * n}; ++i) gauge[{n + m} + i] = A[i];",
+             "}",
+             f"for (i = 0; i < {n}; ++i) {{",
+             f"    {real} acc = z[i];",
+             f"    for (c = 0; c < {m}; ++c) acc -= Y[i * {m} + c] * lam[c];",
+             "    ud[i] = acc;",
+             "}",
+             "if (Q) {",
+             f"    for (i = 0; i < {n}; ++i) {{",
+             f"        {real} acc = {literal(0, real)};",
+             f"        for (c = 0; c < {m}; ++c) acc += A[c * {n} + i] * lam[c];",
+             "        Q[i] = acc;",
+             "    }",
+             "}",
+             "return LCG_OK;"]
+    return body
