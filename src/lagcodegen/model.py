@@ -100,6 +100,12 @@ class Model:
     constraints : sequence of Expr, optional
         Holonomic constraints phi_i(q, t) = 0 (possibly rheonomic) between redundant coordinates:
         Lagrange's equations of the first kind, with multipliers.
+    inputs : sequence of dynamicsymbols or Symbols, optional
+        Inputs r (torques, forces set by a controller while the model runs). They may enter V,
+        the generalized forces, the dissipation function and the loads, linearly or not, and so
+        the forcing F; never the kinetic energy, masses, inertias, positions or constraints (their
+        rates would enter the equations, and the mass matrix must not depend on them). In a sympy
+        model every specified function of t that is not a coordinate or speed must be listed here.
 
     Examples
     --------
@@ -131,11 +137,12 @@ class Model:
     parameter_values: Mapping[Any, float] = field(default_factory=dict)
     sympy_model: Any = None
     constraints: Sequence[Any] = ()
+    inputs: Sequence[Any] = ()
 
     def __post_init__(self) -> None:
         self._check_name()
         set_ = lambda attr, value: object.__setattr__(self, attr, value)  # noqa: E731 (frozen)
-        for attr in ("coordinates", "parameters", "bodies", "loads", "constraints"):
+        for attr in ("coordinates", "parameters", "bodies", "loads", "constraints", "inputs"):
             if not isinstance(getattr(self, attr), (list, tuple)):
                 raise ModelError(f"{attr} must be a list or tuple, got {type(getattr(self, attr)).__name__}")
         set_("parameters", tuple(self.parameters))
@@ -144,6 +151,8 @@ class Model:
             set_("coordinates", tuple(_sympy_model_coordinates(self.sympy_model)))
         set_("coordinates", tuple(self.coordinates))
         self._check_coordinates()
+        set_("inputs", tuple(self.inputs))
+        self._check_inputs()
         set_("potential_energy", _as_expr(self.potential_energy, "potential_energy"))
         set_("dissipation", _as_expr(self.dissipation, "dissipation"))
         if self.kinetic_energy is not None:
@@ -198,6 +207,20 @@ class Model:
             if qname in parameter_names:
                 raise ModelError(f"symbol {qname!r} is declared both as a parameter and as a coordinate")
             names.add(qname)
+
+    def _check_inputs(self) -> None:
+        taken = {p.name: "parameter" for p in self.parameters}
+        taken |= {c.func.__name__: "coordinate" for c in self.coordinates}
+        seen = set()
+        for r in self.inputs:
+            if not (isinstance(r, sp.Symbol) or _is_coordinate(r)):
+                raise ModelError(f"input {r!r} must be a dynamicsymbol r(t) or a Symbol, got {type(r).__name__}")
+            name = input_name(r)
+            if name in taken:
+                raise ModelError(f"input {name!r} is also a {taken[name]} of model {self.name!r}")
+            if name in seen:
+                raise ModelError(f"input {name!r} is listed twice")
+            seen.add(name)
 
     def _checked_forces(self) -> dict:
         forces = {}
@@ -310,11 +333,34 @@ class Model:
                              "generalized_forces")
         for what, expr in exprs:
             check_well_defined(what, expr)
-        check_declared(exprs, self.parameters, self.coordinates)
+        self._check_input_places(exprs)
+        functions = tuple(self.coordinates) + tuple(r for r in self.inputs if not isinstance(r, sp.Symbol))
+        check_declared(exprs, self.parameters, functions,
+                       extra=tuple(r for r in self.inputs if isinstance(r, sp.Symbol)))
+
+    def _check_input_places(self, exprs) -> None:
+        """Inputs may drive the forcing (V, Q, R, loads, gravity), not T, masses, positions or phi."""
+        if not self.inputs:
+            return
+        allowed = ("potential_energy", "dissipation", "generalized force", "torque on", "force on", "gravity")
+        for what, expr in exprs:
+            if expr is None or what.startswith(allowed):
+                continue
+            atoms = expr.free_symbols | _dynamic_functions(expr)
+            for r in self.inputs:
+                if r in atoms:
+                    raise ModelError(f"input {input_name(r)!r} appears in {what}: inputs may enter the potential "
+                                     "energy, generalized forces, dissipation and loads only (in the kinetic "
+                                     "energy, a mass or a position its rate would enter the equations)")
 
 
 _UNDEFINED_ATOMS = ((sp.nan, "nan"), (sp.zoo, "complex infinity (zoo)"), (sp.oo, "infinity (oo)"),
                     (sp.S.NegativeInfinity, "-infinity (-oo)"), (sp.I, "the imaginary unit I"))
+
+
+def input_name(r: Any) -> str:
+    """The name of an input: its Symbol's, or its dynamicsymbol's function name."""
+    return r.name if isinstance(r, sp.Symbol) else r.func.__name__
 
 
 def check_well_defined(what: str, expr: sp.Basic) -> None:

@@ -91,6 +91,10 @@ def reduce_expressions(eom: EquationsOfMotion, outputs=DEFAULT_OUTPUTS,
     fixed : mapping parameter (Symbol or name) -> float, optional
         Parameters folded into the code; every other parameter stays a runtime input ``p[i]``.
     """
+    if eom.inputs:
+        raise KernelError(f"model {eom.name!r} has inputs ({', '.join(map(str, eom.inputs))}): compiled kernels do "
+                          "not take inputs yet; derive_equations, linearize_state and hold_inputs (constant "
+                          "inputs folded in) do")
     outputs = checked_outputs(eom, outputs)
     fixed_values = _checked_fixed(eom, fixed or {})
     folding = {p: sp.Float(v, 17) for p, v in fixed_values}

@@ -30,6 +30,7 @@ left out of them.
 """
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import math
 import numbers
@@ -104,7 +105,7 @@ def _independent_of_t(eom: EquationsOfMotion, g: sp.Expr, samples: int = 4) -> b
 
 # -- equilibria ---------------------------------------------------------------------------------
 def find_equilibria(eom: EquationsOfMotion, values: Mapping | None = None,
-                    guesses: Any = None) -> list[dict]:
+                    guesses: Any = None, inputs: Any = None) -> list[dict]:
     """Equilibria: configurations q* with ``F(q*, 0, t) = 0``.
 
     Parameters
@@ -118,6 +119,8 @@ def find_equilibria(eom: EquationsOfMotion, values: Mapping | None = None,
         Numeric starting points. Default: a deterministic grid, angle-like coordinates over
         [-pi, pi), the others over `LINEAR_GRID` (pass guesses for other scales); at most
         `MAX_GUESSES` points, a seeded random sample of the box when the grid would be bigger.
+    inputs : sequence (n_r,) or mapping input (Symbol or name) -> value
+        The inputs held constant; required when the model has inputs.
 
     Returns
     -------
@@ -143,6 +146,7 @@ def find_equilibria(eom: EquationsOfMotion, values: Mapping | None = None,
     >>> find_equilibria(eom)
     [{theta: 0}, {theta: pi}]
     """
+    eom = hold_inputs(eom, inputs)
     G = equilibrium_conditions(eom)
     if values is None:
         if guesses is not None:
@@ -388,8 +392,14 @@ def _numeric_matrix(A: Any, name: str) -> np.ndarray:
     return np.array(A.evalf(), dtype=float)
 
 
-def linearize(eom: EquationsOfMotion, q0: Any, values: Mapping | None = None) -> LinearModel:
-    """The `LinearModel` about q0 at u = 0, t = 0.
+def linearize(eom: EquationsOfMotion, q0: Any, values: Mapping | None = None, inputs: Any = None) -> LinearModel:
+    """The `LinearModel` about q0 at u = 0, t = 0, in the coordinates' rates.
+
+    With generalized speeds other than the coordinate rates (Kane's u = W(q) qd, e.g. u2 = q1' +
+    q2') the equations are taken to the rates first: M0 = W^T M W, C0 = -W^T dF/du W,
+    K0 = -W^T dF/dq at the equilibrium (F = 0 there, so dW/dq drops out), W = (dK/du)^-1 at rest.
+    For the first-order linearization about any state (steady motions, inputs) see
+    `statics.state_space.linearize_state`.
 
     Parameters
     ----------
@@ -399,6 +409,8 @@ def linearize(eom: EquationsOfMotion, q0: Any, values: Mapping | None = None) ->
     values : mapping parameter (Symbol or name) -> float, optional
         None: M0, C0, K0 are sympy matrices. A mapping (``{}`` for the defaults): numpy arrays,
         ``values`` overriding ``eom.parameter_values``.
+    inputs : sequence (n_r,) or mapping input (Symbol or name) -> value
+        The inputs held constant; required when the model has inputs.
 
     Raises
     ------
@@ -428,6 +440,7 @@ def linearize(eom: EquationsOfMotion, q0: Any, values: Mapping | None = None) ->
     >>> linearize(eom, [3.141592653589793], {}).stable
     False
     """
+    eom = hold_inputs(eom, inputs)
     point = coordinate_point(eom, q0)
     at = {qi: sp.sympify(v) for qi, v in zip(eom.q, point)}
     at[eom.t] = sp.S.Zero
@@ -435,6 +448,8 @@ def linearize(eom: EquationsOfMotion, q0: Any, values: Mapping | None = None) ->
     C = _smooth(eom, -eom.forcing.jacobian(eom.u), eom.u).xreplace(rest)
     K = _smooth(eom, -eom.forcing.xreplace(rest).jacobian(eom.q), eom.q)  # d/dq commutes with u = 0
     mats = [sp.ImmutableMatrix(A.xreplace(at)) for A in (eom.mass_matrix, C, K)]
+    if list(eom.kinematics) != list(eom.u):
+        mats = _in_coordinate_rates(eom, mats, rest, at)
     if values is None:
         return LinearModel(tuple(eom.q), point, *mats)
     vals = resolve_values(eom, values)
@@ -442,6 +457,72 @@ def linearize(eom: EquationsOfMotion, q0: Any, values: Mapping | None = None) ->
               for A, name in zip(mats, ("M0", "C0", "K0"))]
     numbers = {p: sp.Float(v) for p, v in vals.items()}
     return LinearModel(tuple(eom.q), tuple(float(sp.sympify(v).xreplace(numbers)) for v in point), *arrays)
+
+
+def _in_coordinate_rates(eom: EquationsOfMotion, mats: list, rest: dict, at: dict) -> list:
+    """M0, C0, K0 in the coordinate rates when u = W qd (W = (dK/du)^-1 at rest)."""
+    standing = sp.Matrix(eom.kinematics).xreplace(rest).xreplace(at)
+    if any(sp.simplify(e) != 0 for e in standing):
+        raise ValueError(f"model {eom.name!r}: the coordinates move at u = 0 (qd = K(q, 0, t) = "
+                         f"{list(standing)}); no linear model at rest")
+    rates = sp.Matrix(eom.kinematics).jacobian(eom.u).xreplace(rest).xreplace(at)
+    if rates.det() == 0:
+        raise ValueError(f"model {eom.name!r}: qd = K(q, u) is not invertible in u at q0; no linear model")
+    W = rates.inv()
+    M0, C0, K0 = (sp.Matrix(A) for A in mats)
+    return [sp.ImmutableMatrix(sp.simplify(A)) for A in (W.T * M0 * W, W.T * C0 * W, W.T * K0)]
+
+
+def hold_inputs(eom: EquationsOfMotion, inputs: Any) -> EquationsOfMotion:
+    """``eom`` with its inputs replaced by constant values (a sequence in ``eom.inputs`` order or a
+    mapping by Symbol or name); ValueError naming an input without a value or an unknown one."""
+    if not eom.inputs:
+        if inputs:
+            raise ValueError(f"model {eom.name!r} has no inputs, got inputs={inputs!r}")
+        return eom
+    if inputs is None:
+        raise ValueError(f"model {eom.name!r} has inputs {', '.join(map(str, eom.inputs))}: pass their "
+                         "values, e.g. inputs={" + ", ".join(f"'{r}': 0.0" for r in eom.inputs) + "}")
+    held = input_point(eom, inputs)
+    table = dict(zip(eom.inputs, held))
+    return dataclasses.replace(eom, forcing=sp.ImmutableMatrix(eom.forcing.xreplace(table)),
+                               kinematics=sp.ImmutableMatrix(eom.kinematics.xreplace(table)), inputs=())
+
+
+def input_point(eom: EquationsOfMotion, inputs: Any) -> tuple:
+    """``inputs`` as a tuple in ``eom.inputs`` order (sympified); names the culprit when wrong."""
+    names = ", ".join(map(str, eom.inputs))
+    if isinstance(inputs, Mapping):
+        by_name = {r.name: r for r in eom.inputs}
+        given = {}
+        for key, value in inputs.items():
+            symbol = by_name.get(key.name if isinstance(key, sp.Symbol) else input_key_name(key))
+            if symbol is None:
+                raise ValueError(f"{key!r} is not an input of model {eom.name!r} (inputs: {names})")
+            given[symbol] = value
+        missing = [str(r) for r in eom.inputs if r not in given]
+        if missing:
+            raise ValueError(f"no value for input(s) {', '.join(missing)} of model {eom.name!r}")
+        values = [given[r] for r in eom.inputs]
+    else:
+        values = list(np.ravel(inputs)) if isinstance(inputs, np.ndarray) else list(np.atleast_1d(inputs)) \
+            if isinstance(inputs, numbers.Number) else list(inputs)
+    if len(values) != len(eom.inputs):
+        raise ValueError(f"inputs has {len(values)} entries; model {eom.name!r} has {len(eom.inputs)} ({names})")
+    for r, value in zip(eom.inputs, values):
+        if isinstance(value, (str, bytes, bool, np.bool_)) or value is None:
+            raise TypeError(f"input {r} must be a number or sympy expression, got {value!r}")
+        if isinstance(value, numbers.Real) and not math.isfinite(float(value)):
+            raise ValueError(f"input {r} must be finite, got {value!r}")
+    return tuple(sp.sympify(v) for v in values)
+
+
+def input_key_name(key: Any) -> str:
+    """A mapping key naming an input: a string, a Symbol or a dynamicsymbol r(t)."""
+    if isinstance(key, str):
+        return key
+    func = getattr(key, "func", None)
+    return getattr(func, "__name__", str(key))
 
 
 def _smooth(eom: EquationsOfMotion, J: sp.Matrix, wrt: Sequence) -> sp.Matrix:

@@ -11,7 +11,16 @@ import sympy as sp
 import sympy.physics.mechanics as me
 from sympy.core.function import AppliedUndef
 
-from ..model import ROUTE_BODIES, ROUTE_ENERGIES, TIME, Model, ModelError, check_declared, check_symbols_declared
+from ..model import (
+    ROUTE_BODIES,
+    ROUTE_ENERGIES,
+    TIME,
+    Model,
+    ModelError,
+    check_declared,
+    check_symbols_declared,
+    input_name,
+)
 from .grouping import components
 from .holonomic import BAUMGARTE_ALPHA, BAUMGARTE_BETA, holonomic_terms
 
@@ -47,6 +56,8 @@ class EquationsOfMotion:
     constraint_jacobian : ImmutableMatrix (m, n)
     constraint_rate : ImmutableMatrix (m, 1); dphi/dt
     constraint_bias : ImmutableMatrix (m, 1); gamma
+    inputs : tuple of Symbol, (n_r,)
+        Plain symbols of the model's inputs r; they appear in F (and K), never in M.
     """
 
     name: str
@@ -68,6 +79,7 @@ class EquationsOfMotion:
     constraint_jacobian: sp.ImmutableMatrix = sp.ImmutableMatrix(0, 0, [])
     constraint_rate: sp.ImmutableMatrix = sp.ImmutableMatrix(0, 1, [])
     constraint_bias: sp.ImmutableMatrix = sp.ImmutableMatrix(0, 1, [])
+    inputs: tuple = ()
 
     @property
     def m(self) -> int:
@@ -119,20 +131,32 @@ def plain_symbols(coordinates, speeds, parameters) -> tuple[tuple, tuple]:
     return q, u
 
 
-def make_substitution(coordinates, speeds, q, u, what: str, parameters=None) -> Callable:
+def input_symbols(inputs) -> tuple:
+    """Plain Symbols for the inputs (a dynamicsymbol r(t) becomes Symbol r; a Symbol stays)."""
+    return tuple(r if isinstance(r, sp.Symbol) else sp.Symbol(input_name(r)) for r in inputs)
+
+
+def make_substitution(coordinates, speeds, q, u, what: str, parameters=None, inputs=()) -> Callable:
     """Return ``to_plain(expr)``: dynamicsymbols -> plain symbols, raising on leftovers and, when
-    ``parameters`` is given, on free symbols that are not parameters, t, q or u."""
+    ``parameters`` is given, on free symbols that are not parameters, t, q, u or inputs."""
     table = dict(zip(speeds, u))  # Derivative(q(t), t) for the Lagrange routes, u(t) for Kane's
     table.update(zip(coordinates, q))
-    allowed = None if parameters is None else set(parameters) | {TIME} | set(q) | set(u)
+    r = input_symbols(inputs)
+    table.update(zip(inputs, r))
+    allowed = None if parameters is None else set(parameters) | {TIME} | set(q) | set(u) | set(r)
 
     def to_plain(expr, where: str = what):
         expr = sp.sympify(expr)
         out = expr.xreplace(table)
         left = [a for a in out.atoms(sp.Derivative, AppliedUndef)]
         if left:
+            rates = sorted(str(a) for a in left if isinstance(a, sp.Derivative) and a.expr in inputs)
+            if rates:
+                raise ModelError(f"{where} contains the input rate {rates[0]}: inputs may enter the forcing, "
+                                 "their rates may not")
             raise ModelError(f"{where} contains {', '.join(sorted(map(str, left)))}, which is not a "
-                             f"coordinate or a speed of this model")
+                             f"coordinate or a speed of this model; a specified function of time that "
+                             f"drives the model is an input: list it in Model(..., inputs=[...])")
         if allowed is not None:
             check_symbols_declared(where, out.free_symbols - allowed, parameters)
         return out
@@ -145,7 +169,7 @@ def lagrange_symbols(model: Model):
     # the same Derivative objects c.diff(t) builds, without the cost of evaluating them
     speeds = tuple(sp.Derivative(c, TIME, evaluate=False) for c in coords)
     q, u = plain_symbols(coords, speeds, model.parameters)
-    return coords, speeds, q, u, make_substitution(coords, speeds, q, u, "model", model.parameters)
+    return coords, speeds, q, u, make_substitution(coords, speeds, q, u, "model", model.parameters, model.inputs)
 
 def check_mass_matrix(M: sp.Matrix, coords, u) -> None:
     for j, c in enumerate(coords):
@@ -171,8 +195,14 @@ def assemble(model, coords, speeds, q, u, M, F, K, T, V, to_plain, inputs_checke
     """The equations object; M and F are searched for undeclared symbols unless every input
     went through a ``to_plain`` that checks them (``inputs_checked``). ``positions`` maps Points
     whose components in the model's frame are already known (in plain symbols)."""
+    r = input_symbols(model.inputs)
     if not inputs_checked:
-        check_declared([("mass matrix", M), ("forcing", F)], model.parameters, (), extra=q + u)
+        check_declared([("mass matrix", M), ("forcing", F)], model.parameters, (), extra=q + u + r)
+    for (j, k), entry in sp.Matrix(M).todok().items():
+        held = sorted(entry.free_symbols & set(r), key=str)
+        if held:
+            raise ModelError(f"input {held[0]} enters the mass matrix (M[{j},{k}] = {entry}): inputs may "
+                             "enter the forcing only")
     points, positions = [], positions or {}
     for name, where in model.points.items():
         if isinstance(where, me.Point) and where in positions:
@@ -199,4 +229,4 @@ def assemble(model, coords, speeds, q, u, M, F, K, T, V, to_plain, inputs_checke
         name=model.name, route=route, t=TIME, coordinates=tuple(coords), speeds=tuple(speeds),
         q=tuple(q), u=tuple(u), parameters=parameters, parameter_values=values,
         mass_matrix=_immutable(M), forcing=_immutable(F), kinematics=_immutable(K),
-        kinetic_energy=T, potential_energy=V, points=tuple(points), **constrained)
+        kinetic_energy=T, potential_energy=V, points=tuple(points), inputs=r, **constrained)

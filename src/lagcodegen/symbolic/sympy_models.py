@@ -31,7 +31,7 @@ def derive_from_sympy(model: Model):
         kin_dynamic = sp.Matrix([kindiff[c.diff(TIME)] for c in coords])
         route = "sympy KanesMethod (Kane)"
     q, u = plain_symbols(coords, speeds, model.parameters)
-    to_plain = make_substitution(coords, speeds, q, u, "sympy model")
+    to_plain = make_substitution(coords, speeds, q, u, "sympy model", inputs=model.inputs)
     qdot_table = {} if isinstance(method, me.LagrangesMethod) else {
         c.diff(TIME): k for c, k in zip(coords, kin_dynamic)}
     M = to_plain(method.mass_matrix.xreplace(qdot_table), "mass matrix")

@@ -1,0 +1,192 @@
+"""Stage: EquationsOfMotion -> the linearization of the first-order form about any state.
+
+With x = (q, u) and inputs r the equations are ``xd = f(x, r, t)``,
+``f = (K(q, u, r, t), M(q, t)^-1 F(q, u, r, t))``. About an operating point (x0, r0, t0), not
+necessarily an equilibrium (a steady motion with nonzero speeds, a wheel spinning), small
+deviations obey ``dxd = A dx + B dr`` with::
+
+    A = [[dK/dq,                    dK/du   ],
+         [M^-1 (dF/dq - dM/dq ud0), M^-1 dF/du]],     ud0 = M^-1 F at the point
+    B = [[dK/dr], [M^-1 dF/dr]]
+
+(the derivative of M^-1 F is M^-1 (dF - dM M^-1 F)). Any choice of generalized speeds works,
+since nothing assumes u = qd. Models with holonomic constraints are not covered here.
+"""
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import sympy as sp
+
+from ..symbolic.derive import EquationsOfMotion
+from .equilibria import input_point, resolve_values, substitute_values
+
+
+@dataclass(frozen=True)
+class StateSpace:
+    """``dxd = A dx + B dr`` about (x0, r0) at t0, x = (q, u).
+
+    Attributes
+    ----------
+    states : tuple of Symbol, (2n,)
+        q then u.
+    inputs : tuple of Symbol, (n_r,)
+    x0, r0 : tuple
+    t0 : float or Expr
+    A : ndarray (2n, 2n) with values, else sympy ImmutableMatrix
+    B : ndarray (2n, n_r) with values, else sympy ImmutableMatrix (2n x 0 without inputs)
+    """
+
+    states: tuple
+    inputs: tuple
+    x0: tuple
+    r0: tuple
+    t0: Any
+    A: Any
+    B: Any
+
+    def eigenvalues(self) -> np.ndarray:
+        """Eigenvalues of A (complex), sorted by modulus (the natural frequency), then imaginary part."""
+        A = np.asarray(self.A, dtype=float) if isinstance(self.A, np.ndarray) else _numeric(self.A, "A")
+        values = np.linalg.eigvals(A)
+        return values[np.lexsort((values.imag, np.round(np.abs(values), 12)))]
+
+    def frequencies(self) -> np.ndarray:
+        """Natural frequencies |lambda| (rad/s) of the eigenvalues, in their order."""
+        return np.abs(self.eigenvalues())
+
+    def damping_ratios(self) -> np.ndarray:
+        """-Re(lambda) / |lambda| per eigenvalue (1 for a pure decay, 0 undamped, < 0 growing;
+        NaN for lambda = 0)."""
+        lam = self.eigenvalues()
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return np.where(np.abs(lam) > 0, -lam.real / np.abs(lam), np.nan)
+
+
+def _numeric(matrix, name: str) -> np.ndarray:
+    free = sorted(matrix.free_symbols, key=str)
+    if free:
+        raise ValueError(f"{name} still contains {', '.join(map(str, free))}: linearize with values= "
+                         "for numbers")
+    return np.array(matrix.evalf(), dtype=float)
+
+
+def linearize_state(eom: EquationsOfMotion, x0: Any, r0: Any = None, values: Mapping | None = None,
+                    t0: Any = 0) -> StateSpace:
+    """A and B of ``xd = f(x, r, t)`` about (x0, r0, t0).
+
+    Parameters
+    ----------
+    eom : EquationsOfMotion
+        Without holonomic constraints.
+    x0 : sequence (2n,) or mapping state (Symbol or name) -> value
+        The operating state (q, u); any state, not only an equilibrium.
+    r0 : sequence (n_r,) or mapping input -> value
+        The inputs there; required when the model has inputs.
+    values : mapping parameter -> float, optional
+        None: A and B are sympy matrices (exact, in the parameters); a mapping (``{}`` for the
+        defaults): numpy arrays.
+    t0 : number, optional
+        Time of the operating point (rheonomic models).
+
+    Examples
+    --------
+    A damped oscillator m x'' + c x' + k x = F: A = [[0, 1], [-k/m, -c/m]], B = [[0], [1/m]].
+
+    >>> import sympy as sp, sympy.physics.mechanics as me
+    >>> from lagcodegen import Model, derive_equations
+    >>> x, F = me.dynamicsymbols("x F")
+    >>> m, c, k = sp.symbols("m c k", positive=True)
+    >>> model = Model("oscillator", [x], [m, c, k], kinetic_energy=m * x.diff()**2 / 2,
+    ...               potential_energy=k * x**2 / 2, generalized_forces={x: F - c * x.diff()}, inputs=[F])
+    >>> linear = linearize_state(derive_equations(model), [0, 0], [0])
+    >>> linear.A, linear.B
+    (Matrix([
+    [   0,    1],
+    [-k/m, -c/m]]), Matrix([
+    [  0],
+    [1/m]]))
+    """
+    if eom.m:
+        raise ValueError(f"model {eom.name!r} has holonomic constraints: linearize_state covers models in "
+                         "independent coordinates")
+    states = tuple(eom.q) + tuple(eom.u)
+    point = _state_point(eom, x0)
+    if eom.inputs and r0 is None:
+        raise ValueError(f"model {eom.name!r} has inputs {', '.join(map(str, eom.inputs))}: pass r0")
+    held = input_point(eom, r0) if eom.inputs else ()
+    if not eom.inputs and r0 is not None and len(np.atleast_1d(r0)) != 0:
+        raise ValueError(f"model {eom.name!r} has no inputs, got r0={r0!r}")
+    at = dict(zip(states, point)) | dict(zip(eom.inputs, held)) | {eom.t: sp.sympify(t0)}
+    M, F, K = (sp.Matrix(X) for X in (eom.mass_matrix, eom.forcing, eom.kinematics))
+    r = list(eom.inputs)
+    parts = {"M": M, "F": F, "K": K, "dF/dq": F.jacobian(eom.q), "dF/du": F.jacobian(eom.u),
+             "dK/dx": K.jacobian(states), "dF/dr": F.jacobian(r) if r else sp.zeros(eom.n, 0),
+             "dK/dr": K.jacobian(r) if r else sp.zeros(eom.n, 0)}
+    dM = [M.diff(qc) for qc in eom.q]
+    for name, matrix in parts.items():
+        _check_smooth(eom, matrix, name)
+    if values is None:
+        here = {name: matrix.xreplace(at) for name, matrix in parts.items()}
+        dM_here = [X.xreplace(at) for X in dM]
+        solve = lambda rhs: here["M"].LUsolve(rhs)  # noqa: E731
+        ud0 = solve(here["F"])
+        A_lower = solve(here["dF/dq"] - sp.Matrix.hstack(*[X * ud0 for X in dM_here])).row_join(solve(here["dF/du"]))
+        A = here["dK/dx"].col_join(A_lower)
+        B = here["dK/dr"].col_join(solve(here["dF/dr"])) if r else sp.zeros(2 * eom.n, 0)
+        return StateSpace(states, tuple(r), point, held, t0, sp.ImmutableMatrix(sp.simplify(A)),
+                          sp.ImmutableMatrix(sp.simplify(B)))
+    vals = resolve_values(eom, values)
+    number = lambda X, what: np.array(  # noqa: E731
+        substitute_values(eom, X.xreplace(at), vals, f"linearization: {what}").evalf(), dtype=float)
+    here = {name: number(matrix, name) for name, matrix in parts.items()}
+    M_here = here["M"]
+    ud0 = np.linalg.solve(M_here, here["F"].ravel())
+    dM_ud = np.column_stack([number(X, f"dM/d{qc}") @ ud0 for X, qc in zip(dM, eom.q)]) if eom.n else \
+        np.zeros((0, 0))
+    A = np.vstack([here["dK/dx"], np.hstack([np.linalg.solve(M_here, here["dF/dq"] - dM_ud),
+                                              np.linalg.solve(M_here, here["dF/du"])])])
+    B = np.vstack([here["dK/dr"], np.linalg.solve(M_here, here["dF/dr"])]) if r else np.zeros((2 * eom.n, 0))
+    numbers = {p: sp.Float(v) for p, v in vals.items()}
+    as_float = lambda v: float(sp.sympify(v).xreplace(numbers))  # noqa: E731
+    return StateSpace(states, tuple(r), tuple(map(as_float, point)), tuple(map(as_float, held)),
+                      as_float(t0), A, B)
+
+
+def _state_point(eom: EquationsOfMotion, x0: Any) -> tuple:
+    states = tuple(eom.q) + tuple(eom.u)
+    names = ", ".join(map(str, states))
+    if isinstance(x0, Mapping):
+        by_name = {s.name: s for s in states}
+        given = {}
+        for key, value in x0.items():
+            symbol = by_name.get(key.name if isinstance(key, sp.Symbol) else str(key))
+            if symbol is None:
+                raise ValueError(f"{key!r} is not a state of model {eom.name!r} (states: {names})")
+            given[symbol] = value
+        missing = [str(s) for s in states if s not in given]
+        if missing:
+            raise ValueError(f"no value for state(s) {', '.join(missing)} of model {eom.name!r}")
+        x0 = [given[s] for s in states]
+    x0 = list(np.ravel(x0)) if isinstance(x0, np.ndarray) else list(x0)
+    if len(x0) != len(states):
+        raise ValueError(f"x0 has {len(x0)} entries; model {eom.name!r} has {len(states)} states ({names})")
+    out = []
+    for s, value in zip(states, x0):
+        if isinstance(value, (str, bytes, bool, np.bool_)) or value is None:
+            raise TypeError(f"x0 entry for {s} must be a number or sympy expression, got {value!r}")
+        value = sp.sympify(value)
+        if value.has(sp.nan, sp.zoo, sp.oo, -sp.oo):
+            raise ValueError(f"x0 entry for {s} must be finite, got {value!r}")
+        out.append(value)
+    return tuple(out)
+
+
+def _check_smooth(eom: EquationsOfMotion, matrix: sp.Matrix, what: str) -> None:
+    for (i, j), entry in matrix.todok().items():
+        if entry.has(sp.Derivative, sp.DiracDelta, sp.Subs):
+            raise ValueError(f"{what}[{i}, {j}] of model {eom.name!r} is not differentiable (a non-smooth term "
+                             "such as sign() friction); no linearization")
