@@ -51,3 +51,32 @@ def test_gamma_gives_baumgarte_stabilized_constraint_motion():
     residual = (terms["A"] * qdd.subs(along) - terms["gamma"]) - stabilized
     assert sp.simplify(residual) == sp.zeros(2, 1)
     assert sp.simplify(terms["w"] - phi_d.subs(to_plain)) == sp.zeros(2, 1)
+
+
+def test_bodies_route_cart_pendulum_matches_the_textbook():
+    """A cart x with a pendulum bob at (x + l sin th, -l cos th), and first a slider y on its own
+    (a body whose acceleration has no velocity-dependent part, so its inertia term is zero and must
+    be skipped without skipping the bob's). Hand derivation (e.g. Ogata, Modern Control
+    Engineering, the pendulum on a cart with the bob hanging):
+    (mc + m) x'' + m l cos th th'' = m l sin th th'^2 + f,  m l cos th x'' + m l^2 th'' = -m g l sin th,
+    ms y'' = -ms g."""
+    from lagcodegen import Model, derive_equations
+
+    y, x, th = me.dynamicsymbols("y x th")
+    ms, mc, m, l, g, f = sp.symbols("ms mc m l g f", positive=True)
+    N = me.ReferenceFrame("N")
+    O = me.Point("O")
+    O.set_vel(N, 0)
+    cart = O.locatenew("C", x * N.x)
+    bob = O.locatenew("P", (x + l * sp.sin(th)) * N.x - l * sp.cos(th) * N.y)
+    slider = O.locatenew("S", y * N.y)
+    model = Model("cart_pendulum", [y, x, th], [ms, mc, m, l, g, f],
+                  bodies=[me.Particle("slider", slider, ms), me.Particle("cart", cart, mc), me.Particle("bob", bob, m)],
+                  loads=[(cart, f * N.x)], gravity=-g * N.y, frame=N, origin=O)
+    eom = derive_equations(model)
+    Y, X, TH = eom.q
+    YD, XD, THD = eom.u
+    M_hand = sp.Matrix([[ms, 0, 0], [0, mc + m, m * l * sp.cos(TH)], [0, m * l * sp.cos(TH), m * l ** 2]])
+    F_hand = sp.Matrix([-ms * g, m * l * sp.sin(TH) * THD ** 2 + f, -m * g * l * sp.sin(TH)])
+    assert sp.simplify(eom.mass_matrix - M_hand) == sp.zeros(3, 3)
+    assert sp.simplify(eom.forcing - F_hand) == sp.zeros(3, 1)
