@@ -409,3 +409,26 @@ def test_top_level_help_is_plain_text(capsys):
     assert info.value.code == 0 and "``" not in text and "`" not in text
     for word in ("examples", "derive", "emit", "simulate", "sweep", "demo", "--traceback", "Exit codes"):
         assert word in text, word
+
+
+DRIVEN_OSCILLATOR = '''
+import sympy as sp, sympy.physics.mechanics as me
+from lagcodegen import Model
+x, F = me.dynamicsymbols("x F")
+m, c, k = sp.symbols("m c k", positive=True)
+model = Model("driven", [x], [m, c, k], kinetic_energy=m * x.diff()**2 / 2, potential_energy=k * x**2 / 2,
+              generalized_forces={x: F - c * x.diff()}, inputs=[F], parameter_values={"m": 2, "c": 0.4, "k": 8})
+'''
+
+
+def test_linearize_prints_a_b_and_the_modes(tmp_path, capsys):
+    """m x'' + c x' + k x = F by hand: A = [[0, 1], [-k/m, -c/m]], B = [[0], [1/m]];
+    w_n = sqrt(k/m) = 2, zeta = c / (2 sqrt(k m)) = 0.05."""
+    path = tmp_path / "driven.py"
+    path.write_text(DRIVEN_OSCILLATOR)
+    code, out = run_cli(["linearize", str(path), "--inputs", "F=1"], capsys)
+    assert code == 0
+    assert "r = (F)" in out and "[[ 0.   1. ]\n [-4.  -0.2]]" in out and "[[0. ]\n [0.5]]" in out
+    assert out.count("  2  0.05") == 2
+    assert "'G' is not an input" in cli_error(["linearize", str(path), "--inputs", "G=1"], capsys)
+    assert "'y' is not a state" in cli_error(["linearize", str(path), "--at", "y=1"], capsys)

@@ -206,3 +206,32 @@ def test_models_with_inputs_are_not_compiled_yet_and_say_so():
         linearize_state(eom, [0, 0, 0], [0])
     with pytest.raises(ValueError, match="pass r0"):
         linearize_state(eom, [0, 0])
+
+
+def sympy_driven_models():
+    """sympy.physics.mechanics.models' systems driven by specified functions of t (their inputs)."""
+    from sympy.physics.mechanics.models import multi_mass_spring_damper
+
+    cases = [(f"cart_{n}", lambda n=n: n_link_pendulum_on_cart(n=n, cart_force=True, joint_torques=True))
+             for n in (1, 2, 3)]
+    cases += [(f"springs_{n}", lambda n=n: multi_mass_spring_damper(n, apply_gravity=True, apply_external_forces=True))
+              for n in (1, 2, 3)]
+    return cases
+
+
+@pytest.mark.parametrize("name, build", sympy_driven_models(), ids=lambda c: c if isinstance(c, str) else "")
+def test_sympy_driven_models_match_sympy_with_their_inputs(name, build):
+    """The specified forces and torques of sympy's own example systems are inputs now: M and F equal
+    sympy's (its mass_matrix and forcing, renamed to plain symbols); without inputs= the message
+    says how to declare them."""
+    kane = build()
+    inputs = sorted(me.find_dynamicsymbols(kane.forcing) - set(kane.q) - set(kane.u) - set(kane.q.diff(t)), key=str)
+    assert inputs, name
+    parameters = sorted((kane.mass_matrix.free_symbols | kane.forcing.free_symbols) - {t}, key=str)
+    eom = derive_equations(Model(name, parameters=parameters, sympy_model=kane, inputs=inputs))
+    rename = dict(zip(inputs, eom.inputs)) | dict(zip(kane.q, eom.q)) | dict(zip(kane.u, eom.u))
+    kin = kane.kindiffdict()
+    assert sp.simplify(kane.mass_matrix.xreplace(kin).xreplace(rename) - eom.mass_matrix) == sp.zeros(eom.n, eom.n)
+    assert sp.simplify(kane.forcing.xreplace(kin).xreplace(rename) - eom.forcing) == sp.zeros(eom.n, 1)
+    with pytest.raises(ModelError, match="inputs="):
+        derive_equations(Model(name, parameters=parameters, sympy_model=build()))

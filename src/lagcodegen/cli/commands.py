@@ -87,6 +87,43 @@ def cmd_derive(args) -> int:
     return EXIT_OK
 
 
+def cmd_linearize(args) -> int:
+    """Print A = df/dx and B = df/dr of xd = f(x, r) about a state (any state: states not named
+    in --at are 0) with the eigenvalues, their frequencies and damping ratios."""
+    import numpy as np
+
+    from ..statics.state_space import linearize_state
+    from ..symbolic.derive import derive_equations
+
+    eom = derive_equations(load_model(args.model))
+    at = parse_assignments(args.at, "--at")
+    states = [s.name for s in eom.q + eom.u]
+    unknown = [name for name in at if name not in states]
+    if unknown:
+        raise UsageError(f"--at: {unknown[0]!r} is not a state of {eom.name}; states: {', '.join(states)}")
+    given = parse_assignments(args.inputs, "--inputs")
+    names = [r.name for r in eom.inputs]
+    unknown = [name for name in given if name not in names]
+    if unknown:
+        raise UsageError(f"--inputs: {unknown[0]!r} is not an input of {eom.name}; "
+                         f"inputs: {', '.join(names) or 'none'}")
+    values = parse_assignments(args.params, "--params")
+    linear = linearize_state(eom, [at.get(name, 0.0) for name in states],
+                             [given.get(name, 0.0) for name in names] if names else None, values=values)
+    print(f"{eom.name}: x = ({', '.join(states)}), r = ({', '.join(names)}), about x0 = {list(linear.x0)}"
+          + (f", r0 = {list(linear.r0)}" if names else ""))
+    show = lambda matrix: np.array2string(matrix, precision=6, max_line_width=160)  # noqa: E731
+    print("A = df/dx =")
+    print(show(linear.A))
+    if names:
+        print("B = df/dr =")
+        print(show(linear.B))
+    print("eigenvalue, frequency (rad/s), damping ratio:")
+    for lam, w, zeta in zip(linear.eigenvalues(), linear.frequencies(), linear.damping_ratios()):
+        print(f"  {lam.real:+.6g} {lam.imag:+.6g}j  {w:.6g}  {zeta:.6g}")
+    return EXIT_OK
+
+
 def emit_request(args, eom) -> tuple[list, list, dict]:
     """(outputs, methods, fixed) of ``lagcodegen emit``, every name checked."""
     from ..codegen.outputs import DEFAULT_OUTPUTS, OUTPUTS, applicable_outputs
@@ -178,6 +215,14 @@ def make_parser() -> Parser:
     derive.add_argument("--pretty", action="store_true",
                         help="2-D pictures instead of one sympy expression per element")
     derive.set_defaults(run=cmd_derive)
+    linear = commands.add_parser("linearize", help="print A, B of xd = f(x, r) about a state, with eigenvalues")
+    linear.add_argument("model", help="example name or model file")
+    linear.add_argument("--at", action="append", metavar="STATE=VALUE",
+                        help="the operating state (coordinates and speeds; unnamed ones are 0)")
+    linear.add_argument("--inputs", action="append", metavar="INPUT=VALUE", help="the inputs there (default 0)")
+    linear.add_argument("--params", action="append", metavar="NAME=VALUE",
+                        help="parameter values (default: the model's)")
+    linear.set_defaults(run=cmd_linearize)
     emit = commands.add_parser("emit", help="write the standalone C header and source of a model")
     emit.add_argument("model", help="example name or model file")
     emit.add_argument("--out", default=".", help="output directory, created if missing (default: .)")
