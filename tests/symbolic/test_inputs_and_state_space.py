@@ -206,6 +206,10 @@ def test_models_with_inputs_are_not_compiled_yet_and_say_so():
         linearize_state(eom, [0, 0, 0], [0])
     with pytest.raises(ValueError, match="pass r0"):
         linearize_state(eom, [0, 0])
+    with pytest.raises(ValueError, match="mass matrix of model 'driven' is singular"):
+        linearize_state(eom, [0, 0], [0], values={"m": 0.0, "k": 1.0})
+    with pytest.raises(ValueError, match="x0 entry for x must be finite"):
+        linearize_state(eom, [float("nan"), 0], [0])
 
 
 def sympy_driven_models():

@@ -289,37 +289,51 @@ def substitute_values(eom: EquationsOfMotion, expr: sp.Matrix, vals: dict, what:
 
 def coordinate_point(eom: EquationsOfMotion, q0: Any) -> tuple:
     """q0 as a tuple of n entries; q0 is a sequence or a mapping (q Symbol or name) -> value."""
-    names = ", ".join(map(str, eom.q))
-    if isinstance(q0, Mapping):
-        by_name = {qi.name: qi for qi in eom.q}
-        given = {}
-        for key, value in q0.items():
-            symbol = by_name.get(key.name if isinstance(key, sp.Symbol) else key)
+    return named_point(eom, eom.q, q0, "q0", "coordinate")
+
+
+def named_point(eom: EquationsOfMotion, symbols, given: Any, argument: str, kind: str,
+                entry: str = "{argument} entry for {symbol}") -> tuple:
+    """``given`` (a sequence in ``symbols`` order, or a mapping by Symbol, name or dynamicsymbol)
+    as a tuple; a wrong length, an unknown or missing name, a string, None or a non-finite value
+    is an error naming ``argument`` and the entry."""
+    names = ", ".join(map(str, symbols))
+    if isinstance(given, Mapping):
+        by_name = {s.name: s for s in symbols}
+        found = {}
+        for key, value in given.items():
+            symbol = by_name.get(input_key_name(key))
             if symbol is None:
-                raise ValueError(f"{key!r} is not a coordinate of model {eom.name!r} (coordinates: {names})")
-            given[symbol] = value
-        missing = [str(qi) for qi in eom.q if qi not in given]
+                article = "an" if kind[0] in "aeiou" else "a"
+                raise ValueError(f"{key!r} is not {article} {kind} of model {eom.name!r} ({kind}s: {names})")
+            found[symbol] = value
+        missing = [str(s) for s in symbols if s not in found]
         if missing:
-            raise ValueError(f"no value for coordinate(s) {', '.join(missing)} of model {eom.name!r}")
-        q0 = tuple(given[qi] for qi in eom.q)
+            raise ValueError(f"no value for {kind}(s) {', '.join(missing)} of model {eom.name!r}")
+        values = tuple(found[s] for s in symbols)
+    elif isinstance(given, np.ndarray):
+        values = tuple(np.ravel(given))
+    elif isinstance(given, (numbers.Number, sp.Basic)):
+        values = (given,)
     else:
-        q0 = tuple(np.ravel(q0)) if isinstance(q0, np.ndarray) else tuple(q0)
-    if len(q0) != eom.n:
-        raise ValueError(f"q0 has {len(q0)} entries; model {eom.name!r} has {eom.n} coordinate(s) ({names})")
-    for qi, value in zip(eom.q, q0):
-        _check_coordinate(qi, value)
-    return q0
+        values = tuple(given)
+    if len(values) != len(symbols):
+        raise ValueError(f"{argument} has {len(values)} entries; model {eom.name!r} has {len(symbols)} "
+                         f"{kind}(s) ({names})")
+    for symbol, value in zip(symbols, values):
+        _check_entry(entry.format(argument=argument, symbol=symbol), value)
+    return values
 
 
-def _check_coordinate(qi, value) -> None:
-    """A q0 entry is a number or a sympy expression: not a string (sympify would turn "a" into a
+def _check_entry(what: str, value) -> None:
+    """A point entry is a number or a sympy expression: not a string (sympify would turn "a" into a
     new symbol), not NaN or infinite (NaN matrices)."""
     if isinstance(value, (str, bytes, bool, np.bool_)) or value is None:
-        raise TypeError(f"q0 entry for {qi} must be a number or sympy expression, got {value!r}")
+        raise TypeError(f"{what} must be a number or sympy expression, got {value!r}")
     if isinstance(value, numbers.Real) and not math.isfinite(float(value)):
-        raise ValueError(f"q0 entry for {qi} must be finite, got {value!r}")
+        raise ValueError(f"{what} must be finite, got {value!r}")
     if isinstance(value, sp.Basic) and value.is_number and value.has(sp.nan, sp.zoo, sp.oo, -sp.oo):
-        raise ValueError(f"q0 entry for {qi} must be finite, got {value!r}")
+        raise ValueError(f"{what} must be finite, got {value!r}")
 
 
 # -- linearization ------------------------------------------------------------------------------
@@ -491,36 +505,16 @@ def hold_inputs(eom: EquationsOfMotion, inputs: Any) -> EquationsOfMotion:
 
 def input_point(eom: EquationsOfMotion, inputs: Any) -> tuple:
     """``inputs`` as a tuple in ``eom.inputs`` order (sympified); names the culprit when wrong."""
-    names = ", ".join(map(str, eom.inputs))
-    if isinstance(inputs, Mapping):
-        by_name = {r.name: r for r in eom.inputs}
-        given = {}
-        for key, value in inputs.items():
-            symbol = by_name.get(key.name if isinstance(key, sp.Symbol) else input_key_name(key))
-            if symbol is None:
-                raise ValueError(f"{key!r} is not an input of model {eom.name!r} (inputs: {names})")
-            given[symbol] = value
-        missing = [str(r) for r in eom.inputs if r not in given]
-        if missing:
-            raise ValueError(f"no value for input(s) {', '.join(missing)} of model {eom.name!r}")
-        values = [given[r] for r in eom.inputs]
-    else:
-        values = list(np.ravel(inputs)) if isinstance(inputs, np.ndarray) else list(np.atleast_1d(inputs)) \
-            if isinstance(inputs, numbers.Number) else list(inputs)
-    if len(values) != len(eom.inputs):
-        raise ValueError(f"inputs has {len(values)} entries; model {eom.name!r} has {len(eom.inputs)} ({names})")
-    for r, value in zip(eom.inputs, values):
-        if isinstance(value, (str, bytes, bool, np.bool_)) or value is None:
-            raise TypeError(f"input {r} must be a number or sympy expression, got {value!r}")
-        if isinstance(value, numbers.Real) and not math.isfinite(float(value)):
-            raise ValueError(f"input {r} must be finite, got {value!r}")
-    return tuple(sp.sympify(v) for v in values)
+    return tuple(sp.sympify(v) for v in named_point(eom, eom.inputs, inputs, "inputs", "input",
+                                                         entry="input {symbol}"))
 
 
 def input_key_name(key: Any) -> str:
     """A mapping key naming an input: a string, a Symbol or a dynamicsymbol r(t)."""
     if isinstance(key, str):
         return key
+    if isinstance(key, sp.Symbol):
+        return key.name
     func = getattr(key, "func", None)
     return getattr(func, "__name__", str(key))
 

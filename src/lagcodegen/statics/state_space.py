@@ -22,7 +22,7 @@ import numpy as np
 import sympy as sp
 
 from ..symbolic.derive import EquationsOfMotion
-from .equilibria import input_point, resolve_values, substitute_values
+from .equilibria import input_point, named_point, resolve_values, substitute_values
 
 
 @dataclass(frozen=True)
@@ -144,6 +144,9 @@ def linearize_state(eom: EquationsOfMotion, x0: Any, r0: Any = None, values: Map
         substitute_values(eom, X.xreplace(at), vals, f"linearization: {what}").evalf(), dtype=float)
     here = {name: number(matrix, name) for name, matrix in parts.items()}
     M_here = here["M"]
+    if not np.all(np.isfinite(M_here)) or np.linalg.matrix_rank(M_here) < eom.n:
+        raise ValueError(f"the mass matrix of model {eom.name!r} is singular or not finite at x0 = {list(point)} "
+                         f"with these parameter values: M = {M_here.tolist()}; no linearization")
     ud0 = np.linalg.solve(M_here, here["F"].ravel())
     dM_ud = np.column_stack([number(X, f"dM/d{qc}") @ ud0 for X, qc in zip(dM, eom.q)]) if eom.n else \
         np.zeros((0, 0))
@@ -158,31 +161,7 @@ def linearize_state(eom: EquationsOfMotion, x0: Any, r0: Any = None, values: Map
 
 def _state_point(eom: EquationsOfMotion, x0: Any) -> tuple:
     states = tuple(eom.q) + tuple(eom.u)
-    names = ", ".join(map(str, states))
-    if isinstance(x0, Mapping):
-        by_name = {s.name: s for s in states}
-        given = {}
-        for key, value in x0.items():
-            symbol = by_name.get(key.name if isinstance(key, sp.Symbol) else str(key))
-            if symbol is None:
-                raise ValueError(f"{key!r} is not a state of model {eom.name!r} (states: {names})")
-            given[symbol] = value
-        missing = [str(s) for s in states if s not in given]
-        if missing:
-            raise ValueError(f"no value for state(s) {', '.join(missing)} of model {eom.name!r}")
-        x0 = [given[s] for s in states]
-    x0 = list(np.ravel(x0)) if isinstance(x0, np.ndarray) else list(x0)
-    if len(x0) != len(states):
-        raise ValueError(f"x0 has {len(x0)} entries; model {eom.name!r} has {len(states)} states ({names})")
-    out = []
-    for s, value in zip(states, x0):
-        if isinstance(value, (str, bytes, bool, np.bool_)) or value is None:
-            raise TypeError(f"x0 entry for {s} must be a number or sympy expression, got {value!r}")
-        value = sp.sympify(value)
-        if value.has(sp.nan, sp.zoo, sp.oo, -sp.oo):
-            raise ValueError(f"x0 entry for {s} must be finite, got {value!r}")
-        out.append(value)
-    return tuple(out)
+    return tuple(sp.sympify(v) for v in named_point(eom, states, x0, "x0", "state"))
 
 
 def _check_smooth(eom: EquationsOfMotion, matrix: sp.Matrix, what: str) -> None:
