@@ -106,6 +106,10 @@ class Model:
         the forcing F; never the kinetic energy, masses, inertias, positions or constraints (their
         rates would enter the equations, and the mass matrix must not depend on them). In a sympy
         model every specified function of t that is not a coordinate or speed must be listed here.
+    measurements : mapping name -> Expr, optional
+        Output expressions y = h(q, qd, r, t) (sensor readings, a spring force, a contact
+        point's coordinate): compiled into one C function ``<prefix>_measurements`` and recorded
+        in trajectories and sweeps by name. In a Kane model write them in q, its speeds u and r.
 
     Examples
     --------
@@ -138,6 +142,7 @@ class Model:
     sympy_model: Any = None
     constraints: Sequence[Any] = ()
     inputs: Sequence[Any] = ()
+    measurements: Mapping[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         self._check_name()
@@ -163,6 +168,7 @@ class Model:
         set_("points", dict(self.points))
         set_("parameter_values", self._checked_values())
         set_("constraints", tuple(_as_expr(c, f"constraint {i}") for i, c in enumerate(self.constraints)))
+        set_("measurements", self._checked_measurements())
         self._check_route()
         self._check_connected()
         self._check_symbols()
@@ -296,6 +302,7 @@ class Model:
         exprs = [("kinetic_energy", self.kinetic_energy), ("potential_energy", self.potential_energy),
                  ("dissipation", self.dissipation)]
         exprs += [(f"generalized force on {q}", Q) for q, Q in self.generalized_forces.items()]
+        exprs += [(f"measurement {name!r}", y) for name, y in self.measurements.items()]
         for body in self.bodies:
             exprs.append((f"mass of {body.name}", _as_expr(body.mass, f"mass of {body.name}")))
             if isinstance(body, me.RigidBody):
@@ -338,11 +345,28 @@ class Model:
         check_declared(exprs, self.parameters, functions,
                        extra=tuple(r for r in self.inputs if isinstance(r, sp.Symbol)))
 
+    def _checked_measurements(self) -> dict:
+        """name -> Expr; names are distinct identifiers that are not state or input names."""
+        if not isinstance(self.measurements, Mapping):
+            raise ModelError(f"measurements must be a mapping name -> expression, got "
+                             f"{type(self.measurements).__name__}")
+        taken = {str(q.func.__name__) if hasattr(q, "func") else str(q) for q in self.coordinates}
+        taken |= {input_name(r) for r in self.inputs}
+        checked = {}
+        for name, expr in self.measurements.items():
+            if not isinstance(name, str) or not name.isidentifier():
+                raise ModelError(f"measurement name {name!r} must be an identifier string")
+            if name in taken:
+                raise ModelError(f"measurement {name!r} has the name of a coordinate or input; rename it")
+            checked[name] = _as_expr(expr, f"measurement {name!r}")
+        return checked
+
     def _check_input_places(self, exprs) -> None:
         """Inputs may drive the forcing (V, Q, R, loads, gravity), not T, masses, positions or phi."""
         if not self.inputs:
             return
-        allowed = ("potential_energy", "dissipation", "generalized force", "torque on", "force on", "gravity")
+        allowed = ("potential_energy", "dissipation", "generalized force", "torque on", "force on", "gravity",
+                   "measurement")
         for what, expr in exprs:
             if expr is None or what.startswith(allowed):
                 continue

@@ -33,6 +33,9 @@ STATUS_TABLE = (
     StatusCode("UNKNOWN_METHOD", 4, "the method is not compiled into this kernel"),
     StatusCode("SINGULAR_CONSTRAINTS", 5, "the constraint Jacobian lost rank (a singular configuration, or a "
                                           "step crossed one)"),
+    StatusCode("NONFINITE_INPUT", 6, "an input value is NaN or infinite"),
+    StatusCode("INPUT_FAILED", 7, "the input function failed (a callable raised or returned the wrong shape, "
+                                  "or an empty input table)"),
 )
 #: codes only a sweep gives its members (never returned by C)
 SWEEP_STATUS_TABLE = (

@@ -187,13 +187,16 @@ def test_a_sympy_model_with_an_unlisted_specified_function_names_inputs():
         derive_equations(Model("cart", parameters=parameters, sympy_model=kane))
 
 
-def test_models_with_inputs_are_not_compiled_yet_and_say_so():
+def test_inputs_reach_the_kernels_or_fold_in_when_held():
     x, F = me.dynamicsymbols("x F")
     m, k = sp.symbols("m k", positive=True)
     eom = derive_equations(Model("driven", [x], [m, k], kinetic_energy=m * x.diff() ** 2 / 2,
                                  potential_energy=k * x ** 2 / 2, generalized_forces={x: F}, inputs=[F]))
-    with pytest.raises(KernelError, match="has inputs"):
-        reduce_expressions(eom, ["rhs"])
+    reduced = reduce_expressions(eom, ["forcing"])
+    assert reduced.inputs == (sp.Symbol("F"),)
+    assert reduced.kernel("forcing").results[0][1] == sp.Symbol("F") - k * eom.q[0]
+    with pytest.raises(KernelError, match="unknown output"):
+        reduce_expressions(eom, ["thrust"])
     held = reduce_expressions(hold_inputs(eom, [1.5]), ["forcing"])  # a constant input folds in
     assert held.kernel("forcing").results[0][1] == 1.5 - k * eom.q[0]
     with pytest.raises(ValueError, match="inputs=\\{'F': 0.0\\}"):

@@ -19,6 +19,9 @@ if TYPE_CHECKING:
 RESERVED = {"t", "x", "p", "out", "M", "F", "ud", "qd", "xdot", "B", "J", "c", "status", "work", "h",
             "i", "j", "k", "m", "s", "method", "stride", "n_steps", "steps_done", "A", "C", "Y", "z",
             "lam", "Q", "phi", "phi_t", "project"}
+#: ... and those of the functions of a model with inputs or measurements (only then, so that the
+#: names of the other models' symbols do not change)
+DRIVEN_RESERVED = {"r", "dr", "rs", "r0", "r1", "y", "Fx", "Fr", "Jr", "hold", "inputs", "context"}
 
 
 @dataclass(frozen=True)
@@ -30,6 +33,7 @@ class Names:
     state_index: dict  # Symbol -> index into x
     param_index: dict  # Symbol -> index into p
     accel_index: dict  # Symbol -> index into ud (jacobian kernel only)
+    input_index: dict = None  # Symbol -> index into r (models with inputs)
 
 
 def _solver_locals(n: int) -> set:
@@ -45,18 +49,22 @@ def _solver_locals(n: int) -> set:
 def names_for(system: ReducedSystem, model_name: str) -> Names:
     """C names of ``system``'s symbols (CSE temporaries first), clear of the generated code's own."""
     taken = set(RESERVED) | _solver_locals(len(system.q))
+    if system.inputs or system.measurements:
+        taken |= DRIVEN_RESERVED
     temporaries = [s for k in system.kernels for s, _ in k.temporaries]
     symbols = {}
     for s in dict.fromkeys(temporaries):  # cse names first: tmp0, tmp1, ...
         symbols[s] = mangle(s.name, taken)
-    for s in system.q + system.u + system.free_parameters + system.accelerations:
+    for s in system.q + system.u + system.inputs + system.free_parameters + system.accelerations:
         symbols[s] = mangle(s.name, taken)
     symbols[system.t] = "t"
     prefix = "lcg_" + mangle(model_name)
     state = {s: i for i, s in enumerate(system.q + system.u)}
     params = {s: i for i, s in enumerate(system.free_parameters)}
     accel = {s: i for i, s in enumerate(system.accelerations)}
-    return Names(prefix=prefix, symbols=symbols, state_index=state, param_index=params, accel_index=accel)
+    inputs = {s: i for i, s in enumerate(system.inputs)}
+    return Names(prefix=prefix, symbols=symbols, state_index=state, param_index=params, accel_index=accel,
+                 input_index=inputs)
 
 
 @dataclass(frozen=True)
@@ -77,9 +85,26 @@ class KernelWriter:
         return len(self.system.q)
 
     @property
+    def n_inputs(self) -> int:
+        return len(self.system.inputs)
+
+    @property
     def arguments(self) -> str:
-        """The arguments every kernel function starts with."""
+        """The arguments every kernel function starts with (those that cannot read the inputs)."""
         return f"{self.real} t, const {self.real} *x, const {self.real} *p"
+
+    @property
+    def driven_arguments(self) -> str:
+        """The arguments of a function that evaluates the dynamics: with ``const real *r`` when the
+        model has inputs, else as `arguments`."""
+        if not self.n_inputs:
+            return self.arguments
+        return f"{self.real} t, const {self.real} *x, const {self.real} *r, const {self.real} *p"
+
+    @property
+    def rp(self) -> str:
+        """What such a function passes on after ``t, x``: ``r, p`` or ``p``."""
+        return "r, p" if self.n_inputs else "p"
 
     def expr(self, expr, where: str) -> str:
         """``expr`` as C; an expression the printer refuses is an EmitError naming ``where``."""
@@ -88,9 +113,10 @@ class KernelWriter:
         except ValueError as err:
             raise EmitError(f"cannot print {where}: {err}") from err
 
-    def head(self, kernel: ReducedKernel, touches_state: bool = False) -> list:
-        """Input aliases, (void) casts of unused arguments and the CSE temporaries of ``kernel``."""
-        inputs, unused = self._input_lines(kernel)
+    def head(self, kernel: ReducedKernel, touches_state: bool = False, reads_inputs: bool = False) -> list:
+        """Input aliases, (void) casts of unused arguments and the CSE temporaries of ``kernel``
+        (``reads_inputs``: the function has the argument ``r``)."""
+        inputs, unused = self._input_lines(kernel, reads_inputs)
         if touches_state and "x" in unused:
             unused.remove("x")
         lines = [f"/* Inputs ({len(inputs)}) */"] + inputs
@@ -101,7 +127,7 @@ class KernelWriter:
             lines.append(f"const {self.real} {self.names.symbols[s]} = {self.expr(expr, self.names.symbols[s])};")
         return lines
 
-    def _input_lines(self, kernel: ReducedKernel) -> tuple[list, list]:
+    def _input_lines(self, kernel: ReducedKernel, reads_inputs: bool) -> tuple[list, list]:
         """Aliases ``const double q1 = x[0];`` for the inputs a kernel reads, and unused arguments."""
         used, names, real = kernel.symbols, self.names, self.real
         lines = []
@@ -114,6 +140,9 @@ class KernelWriter:
         for s, i in names.accel_index.items():
             if s in used:
                 lines.append(f"const {real} {names.symbols[s]} = ud[{i}];")
+        for s, i in (names.input_index or {}).items():
+            if s in used:
+                lines.append(f"const {real} {names.symbols[s]} = r[{i}];")
         unused = []
         if not any(s in used for s in names.state_index):
             unused.append("x")
@@ -121,6 +150,8 @@ class KernelWriter:
             unused.append("p")
         if TIME not in used:
             unused.append("t")
+        if names.input_index and reads_inputs and not any(s in used for s in names.input_index):
+            unused.append("r")
         return lines, unused
 
 

@@ -62,10 +62,12 @@ class LanePrinter(CPrinter):
 
 
 def lanes_apply(system, methods) -> bool:
-    """True when the lane kernel can serve this system: unconstrained, rhs, an explicit method."""
+    """True when the lane kernel can serve this system: unconstrained, without inputs (members of a
+    driven model run on the scalar sweep, which reads their input tables), rhs, an explicit method."""
     from ..integrators.schemes import get_scheme
 
-    return any(get_scheme(m).lane_capable for m in methods) and not system.n_constraints and "rhs" in system.outputs
+    return (any(get_scheme(m).lane_capable for m in methods) and not system.n_constraints
+            and not system.inputs and "rhs" in system.outputs)
 
 
 def lane_context(system, names, real: str, methods: list, lanes: int, trig: str = "fast") -> dict:

@@ -55,7 +55,8 @@ def _constraint_rows(eom: EquationsOfMotion, with_bias: bool) -> list:
 
 
 def _jacobian_rows(eom: EquationsOfMotion, a) -> list:
-    """M, then d/dx of G = M(q, t) a - F(q, u, t) (and of K when qd != u), x = (q, u).
+    """M, then d/dx of G = M(q, t) a - F(q, u, r, t) (and of K when qd != u), x = (q, u), and
+    d/dr of both (labels GR, DKR) when the model has inputs r.
 
     With a = ud the Jacobian of the first-order right-hand side is
     [[dK/dq, dK/du], [-M^-1 dG/dq, -M^-1 dG/du]] (Hairer-Wanner II, sec. VI.1 for the index-1 form).
@@ -65,8 +66,11 @@ def _jacobian_rows(eom: EquationsOfMotion, a) -> list:
     G = [sp.Add(*[eom.mass_matrix[j, k] * a[k] for k in range(n) if eom.mass_matrix[j, k] != 0]) - eom.forcing[j]
          for j in range(n)]
     rows = [(("G", j, c), _classical(G[j].diff(xc))) for j in range(n) for c, xc in enumerate(x)]
+    rows += [(("GR", j, c), _classical(G[j].diff(rc))) for j in range(n) for c, rc in enumerate(eom.inputs)]
     if list(eom.kinematics) != list(eom.u):
         rows += [(("DK", j, c), _classical(eom.kinematics[j].diff(xc))) for j in range(n) for c, xc in enumerate(x)]
+        rows += [(("DKR", j, c), _classical(eom.kinematics[j].diff(rc)))
+                 for j in range(n) for c, rc in enumerate(eom.inputs)]
     return _mass_rows(eom) + rows
 
 
@@ -105,6 +109,7 @@ KERNEL_ROWS: dict[str, Callable] = {
     "jacobian": _jacobian_rows,
     "momentum": lambda eom, a: _momentum_rows(eom),
     "points": lambda eom, a: _point_rows(eom),
+    "measurements": lambda eom, a: [(("Y", i, 0), y) for i, (_, y) in enumerate(eom.measurements)],
 }
 
 
@@ -174,25 +179,28 @@ def _mass_matrix_c(w: KernelWriter, kernel) -> dict:
 
 
 def _forcing_c(w: KernelWriter, kernel) -> dict:
-    body = w.head(kernel) + ["/* Forcing */"]
+    body = w.head(kernel, reads_inputs=True) + ["/* Forcing */"]
     for (j, _), expr in results(kernel, "F").items():
         body.append(f"F[{j}] = {w.expr(expr, f'F[{j}]')};")
-    return record("void", f"{w.prefix}_forcing", f"{w.arguments}, {w.real} *F", f"Forcing F(q, u, t), {w.n} values.",
+    what = "F(q, u, r, t)" if w.n_inputs else "F(q, u, t)"
+    return record("void", f"{w.prefix}_forcing", f"{w.driven_arguments}, {w.real} *F", f"Forcing {what}, {w.n} values.",
                   body)
 
 
 def _accel_c(w: KernelWriter, kernel) -> dict:
     n, prefix = w.n, w.prefix
-    body = [f"{w.real} qd[{n}];", f"return {prefix}_finite_result({prefix}_dynamics(t, x, p, qd, ud, 0), ud, {n});"]
-    return record("int", f"{prefix}_accel", f"{w.arguments}, {w.real} *ud",
+    body = [f"{w.real} qd[{n}];",
+            f"return {prefix}_finite_result({prefix}_dynamics(t, x, {w.rp}, qd, ud, 0), ud, {n});"]
+    return record("int", f"{prefix}_accel", f"{w.driven_arguments}, {w.real} *ud",
                   "Generalized accelerations ud solving M ud = F; returns a status code.", body)
 
 
 def _rhs_c(w: KernelWriter, kernel) -> dict:
     n, prefix = w.n, w.prefix
-    body = [f"return {prefix}_finite_result({prefix}_dynamics(t, x, p, xdot, xdot + {n}, 0), xdot, {2 * n});"]
-    return record("int", f"{prefix}_rhs", f"{w.arguments}, {w.real} *xdot",
-                  f"First-order right-hand side xdot = f(t, x), x = (q, u), {2 * n} values; "
+    body = [f"return {prefix}_finite_result({prefix}_dynamics(t, x, {w.rp}, xdot, xdot + {n}, 0), xdot, {2 * n});"]
+    what = "f(t, x, r)" if w.n_inputs else "f(t, x)"
+    return record("int", f"{prefix}_rhs", f"{w.driven_arguments}, {w.real} *xdot",
+                  f"First-order right-hand side xdot = {what}, x = (q, u), {2 * n} values; "
                   "returns a status code. xdot must not alias x.", body)
 
 
@@ -212,14 +220,26 @@ def _points_c(w: KernelWriter, kernel) -> dict:
                   f"Positions of {len(names)} named points, 3 values each.", body)
 
 
+def _measurements_c(w: KernelWriter, kernel) -> dict:
+    names = w.system.measurements
+    body = w.head(kernel, reads_inputs=True) + ["/* Measurements y = h(q, u, r, t) */"]
+    for (i, _), expr in results(kernel, "Y").items():
+        body.append(f"y[{i}] = {w.expr(expr, f'measurement {names[i]}')};  /* {comment_text(names[i])} */")
+    return record("void", f"{w.prefix}_measurements", f"{w.driven_arguments}, {w.real} *y",
+                  f"Measurements y ({len(names)} values): {', '.join(comment_text(n) for n in names)}.", body)
+
+
 def _jacobian_c(w: KernelWriter, kernel) -> dict:
     """J = df/dx of the first-order system: [[dK/dq, dK/du], [-M^-1 dG/dq, -M^-1 dG/du]]."""
     n, prefix, real = w.n, w.prefix, w.real
     size = 2 * n
     body = [f"{real} qd[{n}];", f"{real} ud[{n}];", f"{real} B[{n}][{size}];", "int c;",
-            f"const int status = {prefix}_dynamics(t, x, p, qd, ud, 0);",
+            f"const int status = {prefix}_dynamics(t, x, {w.rp}, qd, ud, 0);",
             "if (status != LCG_OK) return status;"]
-    body += w.head(kernel, touches_state=True)
+    n_r = w.n_inputs
+    if n_r:
+        body.insert(3, f"{real} Br[{n}][{n_r}];")
+    body += w.head(kernel, touches_state=True, reads_inputs=True)
     M = results(kernel, "M")
     body.append("/* Mass matrix, lower triangle */")
     for (j, k), expr in M.items():
@@ -229,6 +249,11 @@ def _jacobian_c(w: KernelWriter, kernel) -> dict:
     for (j, c), expr in results(kernel, "G").items():
         value = f"-({w.expr(expr, f'dG[{j}]/dx[{c}]')})" if expr != 0 else literal(0, real)
         body.append(f"B[{j}][{c}] = {value};")
+    if n_r:
+        body.append("/* Br = -dG/dr */")
+        for (j, c), expr in results(kernel, "GR").items():
+            value = f"-({w.expr(expr, f'dG[{j}]/dr[{c}]')})" if expr != 0 else literal(0, real)
+            body.append(f"Br[{j}][{c}] = {value};")
     body.append("/* Kinematic rows dK/dx */")
     DK = results(kernel, "DK")
     for j in range(n):
@@ -244,18 +269,32 @@ def _jacobian_c(w: KernelWriter, kernel) -> dict:
     solve = ldlt_substitution_lines(n, LD, real, lambda i: f"B[{i}][c]",
                                     lambda i: f"J[{(n + i) * size} + c]")
     body += ["    " + line for line in solve]
-    body += ["}", f"return {prefix}_finite_result(LCG_OK, J, {size * size});"]
-    return record("int", f"{prefix}_jacobian", f"{w.arguments}, {real} *J",
-                  f"Jacobian df/dx of the first-order right-hand side, row-major {size} x {size}; "
+    body.append("}")
+    arguments, doc = f"{w.driven_arguments}, {real} *J", ""
+    if n_r:
+        DKR = results(kernel, "DKR")
+        body += ["if (Jr) {  /* df/dr: dK/dr, then M^-1 dF/dr */"]
+        body += [f"    Jr[{j * n_r + c}] = {w.expr(DKR[(j, c)], f'dK[{j}]/dr[{c}]') if DKR else literal(0, real)};"
+                 for j in range(n) for c in range(n_r)]
+        body.append(f"    for (c = 0; c < {n_r}; ++c) {{")
+        solve = ldlt_substitution_lines(n, LD, real, lambda i: f"Br[{i}][c]", lambda i: f"Jr[{(n + i) * n_r} + c]")
+        body += ["        " + line for line in solve]
+        body += ["    }", f"    c = {prefix}_finite_result(LCG_OK, Jr, {size * n_r});",
+                 "    if (c != LCG_OK) return c;", "}"]
+        arguments += f", {real} *Jr"
+        doc = f"; Jr (or NULL) receives df/dr, row-major {size} x {n_r}"
+    body.append(f"return {prefix}_finite_result(LCG_OK, J, {size * size});")
+    return record("int", f"{prefix}_jacobian", arguments,
+                  f"Jacobian df/dx of the first-order right-hand side, row-major {size} x {size}{doc}; "
                   "returns a status code.", body)
 
 
 def _multipliers_c(w: KernelWriter, kernel) -> dict:
     n, prefix, real, m = w.n, w.prefix, w.real, w.system.n_constraints
     body = [f"{real} qd[{n}], ud[{n}];",
-            f"const int status = {prefix}_dynamics_constrained(t, x, p, qd, ud, lam, Q, 0);",
+            f"const int status = {prefix}_dynamics_constrained(t, x, {w.rp}, qd, ud, lam, Q, 0);",
             f"return {prefix}_finite_result(status, lam, {m});"]
-    return record("int", f"{prefix}_multipliers", f"{w.arguments}, {real} *lam, {real} *Q",
+    return record("int", f"{prefix}_multipliers", f"{w.driven_arguments}, {real} *lam, {real} *Q",
                   f"Multipliers lam ({m}) and generalized constraint forces "
                   f"Q = A^T lam ({n}, or NULL): M ud = F - A^T lam.", body)
 
@@ -282,14 +321,14 @@ def _constraints_template_functions(w: KernelWriter) -> list:
 
 def _momentum_c(w: KernelWriter, kernel) -> dict:
     n = w.n
-    body = w.head(kernel) + ["/* Mass matrix, lower triangle, mirrored */"]
+    body = w.head(kernel, reads_inputs=True) + ["/* Mass matrix, lower triangle, mirrored */"]
     for (j, k), expr in results(kernel, "M").items():
         body.append(f"M[{j * n + k}] = {w.expr(expr, f'M[{j}][{k}]')};")
         if j != k:
             body.append(f"M[{k * n + j}] = M[{j * n + k}];")
     body.append("/* G = dL/dq + Q */")
     body += [f"G[{j}] = {w.expr(expr, f'G[{j}]')};" for (j, _), expr in results(kernel, "G").items()]
-    return record("void", f"{w.prefix}_momentum", f"{w.arguments}, {w.real} *M, {w.real} *G",
+    return record("void", f"{w.prefix}_momentum", f"{w.driven_arguments}, {w.real} *M, {w.real} *G",
                   f"M(q) (row-major {n} x {n}) and G = dL/dq + Q, for symplectic Euler in p = M u.", body)
 
 
@@ -330,6 +369,7 @@ OUTPUTS: dict[str, Output] = {o.name: o for o in (
     Output("rhs", "dynamics", _rhs_c, checked=True, calls_dynamics=True, default=True),
     Output("energy", "energy", _energy_c, obstacle=_energy_obstacle, default=True),
     Output("points", "points", _points_c, empty=lambda eom: not eom.points, default=True),
+    Output("measurements", "measurements", _measurements_c, empty=lambda eom: not eom.measurements, default=True),
     Output("jacobian", "jacobian", _jacobian_c, obstacle=_jacobian_obstacle, checked=True, calls_dynamics=True,
            default=True),
     Output("momentum", "momentum", _momentum_c, obstacle=_momentum_obstacle_message),
@@ -390,9 +430,9 @@ def support_functions(w: KernelWriter) -> list:
             m, prefix, real = w.system.n_constraints, w.prefix, w.real
             functions.append(record(
                 "int", f"{prefix}_dynamics",
-                f"{real} t, const {real} *x, const {real} *p, {real} *qd, {real} *ud, {real} *gauge",
+                f"{w.driven_arguments}, {real} *qd, {real} *ud, {real} *gauge",
                 "qd and ud of the constrained system (gauge: see dynamics_constrained).",
-                [f"{real} lam[{m}];", f"return {prefix}_dynamics_constrained(t, x, p, qd, ud, lam, 0, gauge);"],
+                [f"{real} lam[{m}];", f"return {prefix}_dynamics_constrained(t, x, {w.rp}, qd, ud, lam, 0, gauge);"],
                 static=True))
     return functions
 
@@ -413,7 +453,7 @@ def _dynamics_functions(w: KernelWriter) -> list:
     (with an always-inlined copy for the explicit steppers when it is small, `hot_dynamics`)."""
     system, real, prefix, n = w.system, w.real, w.prefix, w.n
     kernel = system.kernel("dynamics")
-    body = w.head(kernel, touches_state=system.kinematics_identity)
+    body = w.head(kernel, touches_state=system.kinematics_identity, reads_inputs=True)
     M = results(kernel, "M")
     body.append("/* Mass matrix, lower triangle */")
     for (j, k), expr in M.items():
@@ -430,7 +470,7 @@ def _dynamics_functions(w: KernelWriter) -> list:
     nonzero = {jk for jk, e in M.items() if e != 0}
     failure = f"{prefix}_pivot_failure(x)"
     m = system.n_constraints
-    arguments = f"{real} t, const {real} *x, const {real} *p, {real} *qd, {real} *ud"
+    arguments = f"{w.driven_arguments}, {real} *qd, {real} *ud"
     if not m:
         factor, LD = ldlt_factor_lines(n, nonzero, real, failure)
         body += factor + _gauge_lines(n) + ldlt_substitution_lines(n, LD, real, lambda i: f"F_{i}",
@@ -444,7 +484,7 @@ def _dynamics_functions(w: KernelWriter) -> list:
         return [record("int", f"{prefix}_dynamics_hot", arguments,
                        doc[:-1] + "; inlined into every explicit Runge-Kutta stage.", body, hot=True),
                 record("int", f"{prefix}_dynamics", arguments, "The same, as one function for the other callers.",
-                       [f"return {prefix}_dynamics_hot(t, x, p, qd, ud, gauge);"], static=True)]
+                       [f"return {prefix}_dynamics_hot(t, x, {w.rp}, qd, ud, gauge);"], static=True)]
     body += _constrained_solve_lines(w, kernel, nonzero, failure)
     return [record("int", f"{prefix}_dynamics_constrained",
                    f"{arguments}, {real} *lam, {real} *Q, {real} *gauge",

@@ -53,6 +53,8 @@ class ReducedSystem:
     ``kinematics_identity`` is True when qd = u (every Lagrange route), so the C copies u.
     ``accelerations`` are the symbols a_j standing for ud_j in the jacobian kernel.
     ``n_constraints`` is m, the number of holonomic constraints.
+    ``inputs`` are the symbols of the inputs r (``r[i]`` in C), in the model's order;
+    ``measurements`` the names of the model's output expressions y = h(q, u, r, t).
     ``ops_saved_by_fixing`` counts operations removed, before CSE, by folding fixed parameters.
     """
 
@@ -71,6 +73,8 @@ class ReducedSystem:
     kinematics_identity: bool
     ops_saved_by_fixing: int
     n_constraints: int = 0
+    inputs: tuple = ()
+    measurements: tuple = ()
 
     def kernel(self, name: str) -> ReducedKernel:
         for k in self.kernels:
@@ -91,10 +95,6 @@ def reduce_expressions(eom: EquationsOfMotion, outputs=DEFAULT_OUTPUTS,
     fixed : mapping parameter (Symbol or name) -> float, optional
         Parameters folded into the code; every other parameter stays a runtime input ``p[i]``.
     """
-    if eom.inputs:
-        raise KernelError(f"model {eom.name!r} has inputs ({', '.join(map(str, eom.inputs))}): compiled kernels do "
-                          "not take inputs yet; derive_equations, linearize_state and hold_inputs (constant "
-                          "inputs folded in) do")
     outputs = checked_outputs(eom, outputs)
     fixed_values = _checked_fixed(eom, fixed or {})
     folding = {p: sp.Float(v, 17) for p, v in fixed_values}
@@ -116,7 +116,8 @@ def reduce_expressions(eom: EquationsOfMotion, outputs=DEFAULT_OUTPUTS,
         fixed_parameters=fixed_values, parameter_values=dict(eom.parameter_values),
         point_names=tuple(name for name, _ in eom.points),
         outputs=tuple(outputs), kernels=tuple(kernels), kinematics_identity=kinematics_identity,
-        ops_saved_by_fixing=int(saved), n_constraints=eom.m)
+        ops_saved_by_fixing=int(saved), n_constraints=eom.m, inputs=tuple(eom.inputs),
+        measurements=tuple(name for name, _ in eom.measurements) if "measurements" in outputs else ())
 
 
 def _checked_fixed(eom: EquationsOfMotion, fixed: Mapping) -> tuple:

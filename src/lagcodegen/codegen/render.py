@@ -51,6 +51,10 @@ class KernelLayout:
         Integration schemes compiled in; a method's number in ``simulate`` is its index here.
     defaults : tuple of (str, float)
         Default values of free parameters that have one.
+    inputs : tuple of str
+        Inputs in ``r[]`` order (empty: the functions take no ``r``).
+    measurements : tuple of str
+        Output expressions in ``y[]`` order.
     """
 
     model: str
@@ -65,6 +69,8 @@ class KernelLayout:
     methods: tuple = ()
     defaults: tuple = ()
     n_constraints: int = 0
+    inputs: tuple = ()
+    measurements: tuple = ()
 
     @property
     def n(self) -> int:
@@ -224,6 +230,7 @@ def _layout(system: ReducedSystem, names: Names, real: str, model_name: str, fun
         parameters=tuple(s.name for s in system.free_parameters),
         fixed=tuple((s.name, v) for s, v in system.fixed_parameters),
         points=system.point_names, functions=exported, methods=methods, n_constraints=system.n_constraints,
+        inputs=tuple(s.name for s in system.inputs), measurements=tuple(system.measurements),
         defaults=tuple((p.name, system.parameter_values[p]) for p in system.free_parameters
                        if p in system.parameter_values))
 

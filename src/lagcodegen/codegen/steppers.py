@@ -57,11 +57,13 @@ def stepper_context(system, names, real: str, methods: list) -> dict:
                "pivot_jump": _literal(PIVOT_JUMP, real), "pivot_collapse": _literal(PIVOT_COLLAPSE[real], real),
                "pivot_jump_text": f"{PIVOT_JUMP:g}",
                "pivot_collapse_text": f"{PIVOT_COLLAPSE[real]:.0e}".replace("e-0", "e-"),
-               "n_pivots": n + system.n_constraints}
+               "n_pivots": n + system.n_constraints} | input_context(system, names, real)
     if not methods:
         return context
     if "rhs" not in system.outputs and "accel" not in system.outputs:
         raise EmitError("integrators need the 'rhs' output; add it to outputs")
+    held, ramped = ("r, 0, ", "r, dr, ") if system.inputs else ("", "")
+    foh = []
     for number, name in enumerate(dict.fromkeys(methods)):
         scheme = get_scheme(name)
         kind = scheme.stepper
@@ -75,46 +77,74 @@ def stepper_context(system, names, real: str, methods: list) -> dict:
             context["tableaux"].append(_tableau_record(scheme, real))
             record["work"] = (scheme.stages + 1) * N + G
             tail = record["gauge_offset"] = record["work"] - G
-            record["call"] = f"{prefix}_{scheme.name}_step(*t, x, p, h, work, work + {tail})"
-            record["call_in_driver"] = f"{prefix}_{scheme.name}_step(t, x, p, h, scratch, scratch + {tail})"
+            record["call"] = f"{prefix}_{scheme.name}_step(*t, x, {held}p, h, work, work + {tail})"
+            record["call_in_driver"] = f"{prefix}_{scheme.name}_step(t, x, {ramped}p, h, scratch, scratch + {tail})"
             dynamics = f"{prefix}_dynamics_hot" if hot_dynamics(system) else f"{prefix}_dynamics"
             context["explicit_steppers"].append(
                 {"name": scheme.name, "title": scheme.title or scheme.name, "order": scheme.order,
-                 "stages": scheme.stages, "lines": _explicit_stage_lines(scheme, prefix, n, dynamics)})
+                 "stages": scheme.stages,
+                 "lines": _explicit_stage_lines(scheme, prefix, n, dynamics, bool(system.inputs))})
         elif kind == KIND_IMPLICIT:
             context["tableaux"].append(_tableau_record(scheme, real))
             s = scheme.stages
             arrays = f"{prefix}_{scheme.name}_a, {prefix}_{scheme.name}_b, {prefix}_{scheme.name}_c"
             record["work"] = 3 * s * N + (s * N) ** 2 + N * N + N + G
             tail = record["gauge_offset"] = record["work"] - G
-            record["call"] = f"{prefix}_irk_step({s}, {arrays}, *t, x, p, h, work, work + {tail})"
-            record["call_in_driver"] = f"{prefix}_step_{scheme.name}(&step_t, x, p, h, scratch)"
+            record["call"] = f"{prefix}_irk_step({s}, {arrays}, *t, x, {held}p, h, work, work + {tail})"
+            record["call_in_driver"] = _exported_call(prefix, scheme.name, bool(system.inputs))
             context["has_implicit"] = True
         else:
             record["work"] = 3 * n * n + 5 * n + N + G
             tail = record["gauge_offset"] = record["work"] - G
-            record["call"] = f"{prefix}_symplectic_euler_step(*t, x, p, h, work, work + {tail})"
-            record["call_in_driver"] = f"{prefix}_step_{scheme.name}(&step_t, x, p, h, scratch)"
+            record["call"] = f"{prefix}_symplectic_euler_step(*t, x, {held}p, h, work, work + {tail})"
+            record["call_in_driver"] = _exported_call(prefix, scheme.name, bool(system.inputs))
             context["has_symplectic_euler"] = True
         context["methods"].append(record)
         context["method_rows"].append({"macro": f"{prefix.upper()}_METHOD_{scheme.name.upper()}", "id": number,
                                        "work_macro": f"{prefix.upper()}_WORK_{scheme.name.upper()}",
                                        "work": record["work"]})
+        held_doc = " with the inputs r held over the step (zero-order hold)" if system.inputs else ""
         context["exported"].append(_record(
-            "int", f"{prefix}_step_{scheme.name}", f"{real} *t, {real} *x, const {real} *p, {real} h, {real} *work",
-            f"One step of {record['title']} (order {scheme.order}); work holds {record['work']} values, "
+            "int", f"{prefix}_step_{scheme.name}",
+            f"{real} *t, {real} *x, {context['r_param']}const {real} *p, {real} h, {real} *work",
+            f"One step of {record['title']} (order {scheme.order}){held_doc}; work holds {record['work']} values, "
             f"the last {G} receive the pivots (gauge) of the state x it started from.", []))
+        if system.inputs:
+            held_stages = "each stage at its own time" if kind in (KIND_EXPLICIT, KIND_IMPLICIT) else \
+                "symplectic Euler holds r0"
+            foh.append(_record(
+                "int", f"{prefix}_step_{scheme.name}_foh",
+                f"{real} *t, {real} *x, const {real} *r0, const {real} *r1, const {real} *p, {real} h, {real} *work",
+                f"One step of {record['title']} with the inputs on the line from r0 at t to r1 at t + h "
+                f"(first-order hold; {held_stages}); "
+                f"work as for {prefix}_step_{scheme.name}.", []))
     context["work_size"] = N + 2 * G + max(m["work"] for m in context["methods"])
+    driven = ""
+    if system.inputs:
+        driven = (f"{prefix}_input_fn inputs, void *context, int hold, {real} *r_out, ")
+    if system.measurements:
+        driven += f"{real} *y_out, "
     driver = _record("int", f"{prefix}_simulate",
                      f"int method, {real} t0, const {real} *x0, const {real} *p, {real} h, "
-                     f"long n_steps, long stride, int project, {real} *t_out, {real} *x_out, {real} *energy_out, "
-                     f"{real} *points_out, {real} *residuals_out, {real} *multipliers_out, {real} *work, "
-                     f"long *steps_done", "Fixed-step integration loop; returns a status code.", [])
+                     f"long n_steps, long stride, int project, {driven}{real} *t_out, {real} *x_out, "
+                     f"{real} *energy_out, {real} *points_out, {real} *residuals_out, {real} *multipliers_out, "
+                     f"{real} *work, long *steps_done", "Fixed-step integration loop; returns a status code.", [])
+    context["exported"] += foh
+    if system.inputs:
+        context["exported"].append(_record(
+            "int", f"{prefix}_table_inputs", f"void *context, {real} t, const {real} *x, {real} *r",
+            f"An input function ({prefix}_input_fn) interpolating linearly in the {prefix}_input_table "
+            "that context points to.", []))
     context["simulate_decl"] = driver["decl"]
     context["exported"].append(driver)
+    tables = summaries = ""
+    if system.inputs:
+        tables = f"const {real} *input_t, const {real} *input_r, long n_knots, int hold, "
+    if system.measurements:
+        summaries = f"{real} *y_final, {real} *y_min, {real} *y_max, "
     sweep = _record("void", f"{prefix}_sweep",
-                    f"int method, long n_members, const {real} *x0s, const {real} *ps, {real} t0, "
-                    f"{real} h, long n_steps, long stride, int project, int track_energy, {real} *x_final, "
+                    f"int method, long n_members, const {real} *x0s, const {real} *ps, {tables}{real} t0, "
+                    f"{real} h, long n_steps, long stride, int project, int track_energy, {summaries}{real} *x_final, "
                     f"{real} *q_max, {real} *energy_error, int *status, long *steps_done, {real} *traj, {real} *work",
                     "Many independent members, one after another.", [])
     context["sweep_decl"] = sweep["decl"]
@@ -124,6 +154,15 @@ def stepper_context(system, names, real: str, methods: list) -> dict:
     context["records_multipliers"] = "multipliers" in system.outputs
     context["exported"].append(sweep)
     return context
+
+
+def _exported_call(prefix: str, name: str, driven: bool) -> str:
+    """The driver's call of a step compiled apart from it (implicit, symplectic Euler), through its
+    exported function (the first-order-hold one when the driver passes r1)."""
+    if not driven:
+        return f"{prefix}_step_{name}(&step_t, x, p, h, scratch)"
+    return (f"r1 ? {prefix}_step_{name}_foh(&step_t, x, r, r1, p, h, scratch) "
+            f": {prefix}_step_{name}(&step_t, x, r, p, h, scratch)")
 
 
 def gauge_size(system) -> int:
@@ -144,14 +183,19 @@ def _tableau_record(scheme, real: str) -> dict:
             "c_values": ", ".join(value(v) for v in scheme.c), "c_comment": ", ".join(map(str, scheme.c))}
 
 
-def _explicit_stage_lines(scheme, prefix: str, n: int, dynamics: str) -> list:
+def _explicit_stage_lines(scheme, prefix: str, n: int, dynamics: str, driven: bool = False) -> list:
     """Straight-line stages of one explicit tableau: only its nonzero a_ij and b_i, read from the
-    method's coefficient arrays (constant indices, so the compiler folds them)."""
+    method's coefficient arrays (constant indices, so the compiler folds them). ``driven``: the
+    stages read the inputs r (held, or r + c_i dr on a ramp; `input_context`)."""
     N, name = 2 * n, f"{prefix}_{scheme.name}"
 
     def evaluate(i, state):
         gauge = "gauge" if i == 0 else "0"  # stage 0 is evaluated at x itself: its pivots are x's
-        return [f"status = {dynamics}(t + {name}_c[{i}] * h, {state}, p, k + {i * N}, k + {i * N + n}, {gauge});",
+        inputs = ""
+        if driven:
+            inputs = "r, " if scheme.c[i] == 0 else f"{prefix}_stage_inputs(r, dr, {name}_c[{i}], rs), "
+        return [f"status = {dynamics}(t + {name}_c[{i}] * h, {state}, {inputs}p, k + {i * N}, k + {i * N + n}, "
+                f"{gauge});",
                 "if (status != LCG_OK) return status;"]
 
     if not needed_stages(scheme)[0]:
@@ -195,3 +239,14 @@ def needed_stages(scheme) -> list:
     for i in reversed(range(s)):
         needed[i] = needed[i] or any(needed[j] and scheme.a[j][i] != 0 for j in range(i + 1, s))
     return needed
+
+
+def input_context(system, names, real: str) -> dict:
+    """Template context of the inputs r: their rows for the header, the C argument text, and the
+    types of the drivers' input function and table (models without inputs: none of it)."""
+    n_r, prefix = len(system.inputs), names.prefix
+    rows = [{"index": i, "name": s.name, "c_name": names.symbols[s]} for i, s in enumerate(system.inputs)]
+    return {"has_measurements": bool(system.measurements), "n_measurements": len(system.measurements),
+            "has_inputs": n_r > 0, "n_inputs": n_r, "n_inputs_or_one": max(1, n_r), "input_rows": rows,
+            "r_param": f"const {real} *r, " if n_r else "", "rp": "r, p" if n_r else "p",
+            "input_fn": f"{prefix}_input_fn", "input_table": f"{prefix}_input_table"}

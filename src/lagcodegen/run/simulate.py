@@ -28,6 +28,7 @@ from .arguments import (  # noqa: F401
     stride_within,
 )
 from .drift import DRIFT_TOLERANCE, ConstraintDriftWarning, resolve_drift_tolerance, warn_if_drifted  # noqa: F401
+from .inputs import CallableInputs, InputTable, hold_code, resolve_inputs
 
 
 class SimulationError(RuntimeError):
@@ -64,6 +65,14 @@ class Trajectory:
     multipliers, constraint_forces : ndarray (n_out, m), (n_out, n) or None
         Constrained models: lambda and the generalized constraint forces A^T lambda, with
         M ud = F - A^T lambda (so the force the constraints exert is -A^T lambda).
+    inputs : ndarray (n_out, n_r) or None
+        Driven models: the inputs r read at each kept sample (held over the step that starts
+        there), columns named by ``input_names``; NaN where reading them failed.
+    measurements : ndarray (n_out, n_y) or None
+        The model's output expressions y = h(q, u, r, t) at each kept sample, columns named by
+        ``measurement_names`` (also ``traj["name"]``).
+    detail : str or None
+        What failed, when the run's inputs stopped it (which input, which value, what the callable raised).
     """
 
     t: np.ndarray
@@ -80,6 +89,11 @@ class Trajectory:
     residuals: np.ndarray | None = None
     multipliers: np.ndarray | None = None
     constraint_forces: np.ndarray | None = None
+    inputs: np.ndarray | None = None
+    input_names: tuple = ()
+    detail: str | None = None
+    measurements: np.ndarray | None = None
+    measurement_names: tuple = ()
 
     @property
     def ok(self) -> bool:
@@ -89,8 +103,9 @@ class Trajectory:
     def message(self) -> str:
         if self.ok:
             return "ok"
+        detail = f" ({self.detail})" if self.detail else ""
         return (f"{self.method} stopped at step {self.failed_step} (t = {self.failed_time:.6g}): "
-                f"{self.status.message}")
+                f"{self.status.message}{detail}")
 
     def check(self) -> Trajectory:
         """Return self, or raise `SimulationError` when the run stopped early."""
@@ -105,11 +120,15 @@ class Trajectory:
                 f"state=({', '.join(self.names)}), status={self.status.name}{where})")
 
     def __getitem__(self, name: str) -> np.ndarray:
-        """The column of state variable ``name`` (e.g. ``traj["q1"]``), shape (n_out,)."""
-        try:
+        """The column of state variable or input ``name`` (e.g. ``traj["q1"]``), shape (n_out,)."""
+        if name in self.names:
             return self.x[:, self.names.index(name)]
-        except ValueError:
-            raise KeyError(f"no state variable {name!r}; names: {', '.join(self.names)}") from None
+        if name in self.input_names and self.inputs is not None:
+            return self.inputs[:, self.input_names.index(name)]
+        if name in self.measurement_names and self.measurements is not None:
+            return self.measurements[:, self.measurement_names.index(name)]
+        known = self.names + self.input_names + self.measurement_names
+        raise KeyError(f"no state variable or input {name!r}; names: {', '.join(known)}")
 
 
 def parameter_vector(system: CompiledSystem, params: Mapping | None = None) -> np.ndarray:
@@ -181,7 +200,7 @@ def simulate(system: CompiledSystem, x0, t_end: float, h: float, method: str = "
              params: Mapping | None = None, t0: float = 0.0, stride: int = 1, energy: bool = False,
              points: bool = False, check_stability: bool = True, project: bool = False,
              residuals: bool = False, multipliers: bool = False, drift_tolerance: float | None = None,
-             max_output_bytes: int | None = None) -> Trajectory:
+             max_output_bytes: int | None = None, inputs=None, hold: str = "zoh") -> Trajectory:
     """Integrate with a fixed step, the whole loop in C.
 
     Parameters
@@ -217,6 +236,16 @@ def simulate(system: CompiledSystem, x0, t_end: float, h: float, method: str = "
     max_output_bytes : int, optional
         Refuse (`arguments.OutputTooLargeError`) runs keeping more; default half the
         physical memory.
+    inputs : optional
+        Driven models (``Model(..., inputs=[...])``) only, and for them required: a constant
+        (a number, or one per input), a mapping name -> constant or table, an array with a row
+        per step (``n_steps`` or ``n_steps + 1`` rows) or per stride, a table ``(t, r)`` with
+        increasing times covering the run (linear interpolation in C), or a callable
+        ``f(t, x) -> r`` for feedback (a Python call per step: slower). See `inputs.resolve_inputs`.
+    hold : {"zoh", "foh"}
+        ``"zoh"``: the inputs read at a step's start are held over the step (the embedded
+        convention); ``"foh"``: the stages take them on the line to the value at the step's end
+        (first-order hold; not for a callable, whose inputs depend on the state).
 
     Returns
     -------
@@ -251,6 +280,11 @@ def simulate(system: CompiledSystem, x0, t_end: float, h: float, method: str = "
     stride = stride_within(stride, n_steps)
     x = initial_state(system, x0)
     p = parameter_vector(system, params)
+    signal = resolve_inputs(system.layout, inputs, t0, h, n_steps, stride)
+    ramp = hold_code(hold)
+    if ramp and callable(signal):
+        raise ValueError("hold='foh' needs the inputs at the step's end before the step: not for a callable of "
+                         "the state; use hold='zoh' or a table")
     outputs = _outputs(system, energy=energy, points=points, project=project, residuals=residuals,
                        multipliers=multipliers)
     tolerance = resolve_drift_tolerance(system.layout, drift_tolerance)
@@ -259,8 +293,9 @@ def simulate(system: CompiledSystem, x0, t_end: float, h: float, method: str = "
                           residuals=track, multipliers=outputs["multipliers"])
     check_output_size(nbytes, n_steps, stride, "the run", max_output_bytes)
     if flag(check_stability, "check_stability"):
-        warn_if_unstable(system, x, p, h, method, t0, n_steps)
-    trajectory = _run(system, x, p, t0, h, n_steps, stride, method, outputs, track)
+        r0 = None if signal is None or callable(signal) else signal.at(t0)
+        warn_if_unstable(system, x, p, h, method, t0, n_steps, r=r0)
+    trajectory = _run(system, x, p, t0, h, n_steps, stride, method, outputs, track, signal, ramp)
     if tolerance is not None:
         warn_if_drifted(trajectory, tolerance, system.layout.n_constraints)
     if not outputs["residuals"] and trajectory.residuals is not None:  # kept for the drift check only
@@ -298,7 +333,8 @@ NEEDED_OUTPUT = {"energy": "energy", "points": "points", "project": "constraints
                  "multipliers": "multipliers"}
 
 
-def _run(system, x, p, t0, h, n_steps, stride, method, outputs, track_residuals) -> Trajectory:
+def _run(system, x, p, t0, h, n_steps, stride, method, outputs, track_residuals, signal=None,
+         ramp: int = 0) -> Trajectory:
     layout, dtype = system.layout, real_dtype(system)
     n_out = n_steps // stride + 1
     t_out = np.empty(n_out, dtype=dtype)
@@ -312,9 +348,18 @@ def _run(system, x, p, t0, h, n_steps, stride, method, outputs, track_residuals)
     steps_done = system.ffi.new("long *")
     ptr = lambda a: system.ffi.NULL if a is None else c_pointer(system, a)  # noqa: E731
     simulate_c = getattr(system.lib, f"{layout.prefix}_simulate")
+    driven, in_out, source = (), None, None
+    if layout.inputs:
+        in_out = np.full((n_out, len(layout.inputs)), np.nan, dtype=dtype)
+        driven, source = _input_arguments(system, signal, ramp)
+        driven += (ptr(in_out),)
+    y_out = None
+    if layout.measurements:
+        y_out = np.full((n_out, len(layout.measurements)), np.nan, dtype=dtype)
+        driven += (ptr(y_out),)
     code = simulate_c(layout.methods.index(method), t0, c_pointer(system, x), c_pointer(system, p), h,
-                      n_steps, stride, int(outputs["project"]), ptr(t_out), ptr(x_out), ptr(e_out), ptr(p_out),
-                      ptr(r_out), ptr(m_out), ptr(work), steps_done)
+                      n_steps, stride, int(outputs["project"]), *driven, ptr(t_out), ptr(x_out), ptr(e_out),
+                      ptr(p_out), ptr(r_out), ptr(m_out), ptr(work), steps_done)
     status = Status(code)
     kept = n_out if status == Status.OK else steps_done[0] // stride + 1
     failed_step = None if status == Status.OK else steps_done[0] + 1
@@ -326,18 +371,45 @@ def _run(system, x, p, t0, h, n_steps, stride, method, outputs, track_residuals)
         multipliers=None if m_out is None else m_out[:kept, :m],
         constraint_forces=None if m_out is None else m_out[:kept, m:],
         point_names=layout.points, status=status, failed_step=failed_step, failed_time=failed_time,
-        method=method, h=h)
+        method=method, h=h, inputs=None if in_out is None else in_out[:kept], input_names=layout.inputs,
+        detail=_input_detail(source, status), measurements=None if y_out is None else y_out[:kept],
+        measurement_names=layout.measurements)
     if not trajectory.ok:
         warnings.warn(trajectory.message, RuntimeWarning, stacklevel=3)
     return trajectory
+
+
+def _input_arguments(system: CompiledSystem, signal, ramp: int) -> tuple:
+    """The driver's (input function, context, hold) for a table or a callable, and what keeps
+    the cffi objects alive for the call (the table's arrays, the callback)."""
+    ffi, prefix = system.ffi, system.layout.prefix
+    if callable(signal) and not isinstance(signal, InputTable):
+        source = CallableInputs(system, signal)
+        return (source.callback, ffi.NULL, ramp), source
+    dtype = real_dtype(system)
+    times = np.ascontiguousarray(signal.times, dtype=dtype)
+    values = np.ascontiguousarray(signal.values, dtype=dtype)
+    table = ffi.new(f"{prefix}_input_table *")
+    table.t, table.r = c_pointer(system, times), c_pointer(system, values)
+    table.n, table.cursor = len(times), 0
+    source = (table, times, values)
+    function = ffi.addressof(system.lib, f"{prefix}_table_inputs")
+    return (function, table, ramp), source
+
+
+def _input_detail(source, status: Status) -> str | None:
+    if isinstance(source, CallableInputs) and status != Status.OK:
+        return source.detail
+    return None
 
 
 def work_size(system: CompiledSystem) -> int:
     return int(getattr(system.lib, f"{system.layout.prefix.upper()}_WORK_SIZE"))
 
 
-def jacobian(system: CompiledSystem, x, p, t: float = 0.0) -> np.ndarray:
-    """df/dx (2n, 2n) of the compiled first-order right-hand side (the analytic Jacobian)."""
+def jacobian(system: CompiledSystem, x, p, t: float = 0.0, r=None, with_inputs: bool = False):
+    """df/dx (2n, 2n) of the compiled first-order right-hand side (the analytic Jacobian); for a
+    driven model at the inputs ``r``, and with ``with_inputs`` the pair (df/dx, df/dr (2n, n_r))."""
     layout = system.layout
     name = f"{layout.prefix}_jacobian"
     if name not in layout.functions:
@@ -345,11 +417,21 @@ def jacobian(system: CompiledSystem, x, p, t: float = 0.0) -> np.ndarray:
     size = 2 * layout.n
     J = np.empty((size, size), dtype=real_dtype(system))
     x, p = np.ascontiguousarray(x, dtype=real_dtype(system)), np.ascontiguousarray(p, dtype=real_dtype(system))
-    code = getattr(system.lib, name)(t, c_pointer(system, x), c_pointer(system, p), c_pointer(system, J))
+    driven, Jr = (), None
+    if layout.inputs:
+        r = np.ascontiguousarray(np.zeros(len(layout.inputs)) if r is None else r, dtype=real_dtype(system))
+        Jr = np.empty((size, len(layout.inputs)), dtype=real_dtype(system))
+        driven = (c_pointer(system, r),)
+    arguments = (t, c_pointer(system, x), *driven, c_pointer(system, p), c_pointer(system, J))
+    if layout.inputs:
+        arguments += (c_pointer(system, Jr) if with_inputs else system.ffi.NULL,)
+    code = getattr(system.lib, name)(*arguments)
     if code == Status.NONFINITE_STATE:
         raise JacobianOverflow(f"jacobian at x = {x} is not finite: {Status(code).message}")
     if code != Status.OK:
         raise ValueError(f"jacobian failed at x = {x}: {Status(code).message}")
+    if with_inputs:
+        return J, (Jr if Jr is not None else np.empty((size, 0), dtype=J.dtype))
     return J
 
 
@@ -358,7 +440,7 @@ class JacobianOverflow(ValueError):
 
 
 def warn_if_unstable(system: CompiledSystem, x, p, h: float, method: str, t: float = 0.0,
-                     n_steps: int = 1) -> bool:
+                     n_steps: int = 1, r=None) -> bool:
     """Warn (and return True) when the step is outside the method's linear stability region.
 
     The Jacobian's eigenvalues lambda at x are the local frequencies. Modes with Re(lambda) > 0
@@ -372,7 +454,7 @@ def warn_if_unstable(system: CompiledSystem, x, p, h: float, method: str, t: flo
     if scheme.implicit:  # A-stable or close to it; the pre-check is for explicit steps
         return False
     try:
-        J = jacobian(system, x, p, t)
+        J = jacobian(system, x, p, t, r=r)
     except JacobianOverflow:
         J = None
     except ValueError:  # e.g. a singular mass matrix at x: the run itself reports it
@@ -400,42 +482,80 @@ def warn_if_unstable(system: CompiledSystem, x, p, h: float, method: str, t: flo
 
 
 def solve_reference(system: CompiledSystem, x0, t_eval, *, params: Mapping | None = None, t0: float = 0.0,
-                    method: str = "DOP853", rtol: float = 1e-12, atol: float = 1e-12):
+                    method: str = "DOP853", rtol: float = 1e-12, atol: float = 1e-12, inputs=None):
     """scipy ``solve_ivp`` on the compiled right-hand side; returns (t (k,), x (k, 2n)).
 
-    The reference for error measurements (DOP853 or Radau at rtol = atol = 1e-12).
+    The reference for error measurements (DOP853 or Radau at rtol = atol = 1e-12). A driven
+    model takes ``inputs`` as `simulate` does, read continuously: a table interpolated at every
+    time scipy asks for, a callable at (t, x) (an array per step is a step function of t).
     """
     from scipy.integrate import solve_ivp
 
     layout = system.layout
     if layout.precision != "double":
         raise ValueError("reference solutions need a double-precision kernel")
-    rhs = make_rhs(system, params)
-    x = initial_state(system, x0)
     t_eval = np.asarray(t_eval, dtype=float)
+    signal = None
+    if layout.inputs or inputs is not None:
+        h = (float(t_eval[-1]) - t0) / max(1, len(t_eval) - 1)
+        signal = resolve_inputs(layout, inputs, t0, h, max(1, len(t_eval) - 1), 1)
+    rhs = make_rhs(system, params, inputs=signal)
+    x = initial_state(system, x0)
     kwargs = {}
     if method in ("Radau", "BDF", "LSODA") and f"{layout.prefix}_jacobian" in layout.functions:
         p = parameter_vector(system, params)
-        kwargs["jac"] = lambda t, y: jacobian(system, y, p, t)
-    solution = solve_ivp(rhs, (t0, float(t_eval[-1])), x, method=method, t_eval=t_eval, rtol=rtol,
-                         atol=atol, **kwargs)
-    if not solution.success:
-        raise RuntimeError(f"reference solution ({method}) failed: {solution.message}")
-    return solution.t, solution.y.T
+        kwargs["jac"] = lambda t, y: jacobian(system, y, p, t, r=_signal_at(signal, t, y))
+    breaks = signal.times if isinstance(signal, InputTable) and signal.times.size > 1 else ()
+    solution = _solve_between(solve_ivp, rhs, t0, float(t_eval[-1]), x, method, t_eval, rtol, atol, breaks, kwargs)
+    return solution
 
 
-def make_rhs(system: CompiledSystem, params: Mapping | None = None):
-    """``f(t, x) -> xdot`` (numpy) calling the compiled rhs; raises on a non-OK status."""
+def _signal_at(signal, t, x):
+    if signal is None:
+        return None
+    if isinstance(signal, InputTable):
+        return signal.at(t)
+    return np.asarray(signal(t, np.asarray(x)), dtype=float).reshape(-1)
+
+
+def _solve_between(solve_ivp, rhs, t0, t_end, x, method, t_eval, rtol, atol, breaks, kwargs):
+    """solve_ivp from knot to knot of the input table, so no step straddles a kink or jump of the
+    inputs (a step across one would lose the method's order there)."""
+    edges = [t0] + [b for b in breaks if t0 < b < t_end] + [t_end]
+    times, states = [], []
+    for k, (a, b) in enumerate(zip(edges[:-1], edges[1:])):
+        last = k == len(edges) - 2
+        inside = t_eval[(t_eval >= a) & ((t_eval <= b) if last else (t_eval < b))]
+        points = np.union1d(inside, [b])
+        solution = solve_ivp(rhs, (a, b), x, method=method, t_eval=points, rtol=rtol, atol=atol, **kwargs)
+        if not solution.success:
+            raise RuntimeError(f"reference solution ({method}) failed: {solution.message}")
+        keep = np.isin(solution.t, inside)
+        times.append(solution.t[keep])
+        states.append(solution.y.T[keep])
+        x = solution.y[:, -1]
+    return np.concatenate(times), np.concatenate(states)
+
+
+def make_rhs(system: CompiledSystem, params: Mapping | None = None, inputs=None):
+    """``f(t, x) -> xdot`` (numpy) calling the compiled rhs; raises on a non-OK status. A driven
+    model reads ``inputs`` (an `InputTable` or a callable f(t, x)) at every call."""
     layout = system.layout
     p = parameter_vector(system, params)
     p_ptr = c_pointer(system, p)
     rhs_c = getattr(system.lib, f"{layout.prefix}_rhs")
     dtype = real_dtype(system)
+    if layout.inputs and inputs is None:
+        raise ValueError(f"model {layout.model!r} is driven by {', '.join(layout.inputs)}: pass inputs=")
 
     def f(t, x):
         x = np.ascontiguousarray(x, dtype=dtype)
         out = np.empty_like(x)
-        code = rhs_c(t, c_pointer(system, x), p_ptr, c_pointer(system, out))
+        if layout.inputs:
+            r = np.ascontiguousarray(_signal_at(inputs, t, x), dtype=dtype)
+            code = rhs_c(t, c_pointer(system, x), c_pointer(system, r), p_ptr, c_pointer(system, out))
+        else:
+            code = rhs_c(t, c_pointer(system, x), p_ptr, c_pointer(system, out))
         if code != Status.OK:
             raise FloatingPointError(f"rhs failed at t = {t}: {Status(code).message}")
         return out

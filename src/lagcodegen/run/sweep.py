@@ -30,8 +30,17 @@ import numpy as np
 from ..native.build import CompiledSystem
 from ..status import CHUNK_FAILED, NOT_RUN, SWEEP_STATUS_NAMES, Status  # noqa: F401 (re-exported)
 from .arguments import check_memory, check_output_size, flag, output_bytes, positive_int, step_count, stride_within
+from .inputs import hold_code
 from .simulate import c_pointer, compiled_method, real_dtype, work_size
-from .sweep_members import cartesian_members, cartesian_product, column_values, grid_axes, member_arrays, table_members  # noqa: F401
+from .sweep_members import (  # noqa: F401
+    cartesian_members,
+    cartesian_product,
+    column_values,
+    grid_axes,
+    member_arrays,
+    member_input_tables,
+    table_members,
+)
 
 
 class SweepWarning(RuntimeWarning):
@@ -80,6 +89,9 @@ class SweepResult:
         ``"lanes"`` (the lane-group kernel) or ``"scalar"`` (members one after another).
     errors : tuple of ChunkError
         The chunks that raised, with the exception (also emitted as a `SweepWarning`).
+    y_final, y_min, y_max : ndarray (n_members, n_y) or None
+        The model's measurements at the end, and their least and greatest value over every step,
+        columns named by ``measurement_names``.
     """
 
     columns: tuple
@@ -98,6 +110,10 @@ class SweepResult:
     completed: bool
     kernel: str = "scalar"
     errors: tuple = ()
+    y_final: np.ndarray | None = None
+    y_min: np.ndarray | None = None
+    y_max: np.ndarray | None = None
+    measurement_names: tuple = ()
 
     @property
     def n_members(self) -> int:
@@ -116,7 +132,7 @@ def sweep(system: CompiledSystem, grid: Mapping | None = None, *, members: Mappi
           trajectories: bool = False, stride: int = 1, threads: int | None = None,
           chunk_size: int | None = None, progress: bool | None = None, client=None,
           track_energy: bool = True, project: bool = False, kernel: str = "auto",
-          max_output_bytes: int | None = None) -> SweepResult:
+          max_output_bytes: int | None = None, inputs=None, member_inputs=None, hold: str = "zoh") -> SweepResult:
     """Run one compiled model for every member of a grid or table.
 
     Parameters
@@ -151,6 +167,11 @@ def sweep(system: CompiledSystem, grid: Mapping | None = None, *, members: Mappi
     max_output_bytes : int, optional
         Refuse (`arguments.OutputTooLargeError`) sweeps whose arrays would take more;
         default half the physical memory.
+    inputs, member_inputs, hold
+        Driven models: the base inputs as `simulate` takes them (no callable); a grid or table
+        column named like an input is its amplitude, multiplying the base signal (constant 1
+        where ``inputs`` gives none). ``member_inputs``: instead, one input spec per member.
+        Members of a driven model run on the scalar kernel.
 
     Every argument is checked before any member runs; errors name the argument. A chunk that
     raises (a Dask worker lost, say) does not lose the others: its members get status
@@ -196,10 +217,16 @@ def sweep(system: CompiledSystem, grid: Mapping | None = None, *, members: Mappi
         (columns, values), axes = table_members(members), None
         _check_sweep_size(layout, len(values), len(columns), n_steps, stride, trajectories, max_output_bytes)
     xs, ps = member_arrays(system, columns, values, x0, params)
+    ramp = hold_code(hold)
+    tables = member_input_tables(system, columns, values, inputs, member_inputs, t0, h, n_steps, stride)
     system = _kernel_system(system, method, project, kernel)
     lanes = _lanes(system, method, project, kernel)
     job = _Job(system, layout.methods.index(method), t0, h, n_steps, stride, track_energy, trajectories, project,
-               lanes)
+               lanes, ramp)
+    if tables is not None:  # the tables travel with the members, chunk by chunk
+        dtype = real_dtype(system)
+        xs = _DrivenStates(xs, np.ascontiguousarray(tables[0], dtype=dtype),
+                           np.ascontiguousarray(tables[1], dtype=dtype))
     out = _allocate(job, len(values))
     threads = threads or os.cpu_count() or 1
     if chunk_size is None:  # whole lane groups per chunk: only the sweep's last group has empty lanes
@@ -275,6 +302,22 @@ def _lanes(system: CompiledSystem, method: str, project: bool, kernel: str) -> i
 
 
 @dataclass(frozen=True)
+class _DrivenStates:
+    """Members' initial states with their input tables (times (k,) and values (k, n_r) each),
+    sliced together into chunks."""
+
+    x: np.ndarray
+    times: np.ndarray
+    values: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.x)
+
+    def __getitem__(self, rows) -> _DrivenStates:
+        return _DrivenStates(self.x[rows], self.times[rows], self.values[rows])
+
+
+@dataclass(frozen=True)
 class _Job:
     system: CompiledSystem
     method_id: int
@@ -286,6 +329,7 @@ class _Job:
     trajectories: bool
     project: bool = False
     lanes: int = 0  # members per group of the lane kernel; 0: the scalar kernel
+    hold: int = 0  # driven models: 0 zero-order hold, 1 first-order hold
 
     @property
     def n_out(self) -> int:
@@ -302,6 +346,8 @@ def _allocate(job: _Job, n_members: int) -> dict:
         "status": np.full(n_members, NOT_RUN, np.intc),
         "steps_done": np.zeros(n_members, np.int_),
         "traj": np.full((n_members, job.n_out, size), np.nan, dtype) if job.trajectories else None,
+        **{key: np.full((n_members, len(layout.measurements)), np.nan, dtype) if layout.measurements else None
+           for key in ("y_final", "y_min", "y_max")},
     }
 
 
@@ -328,8 +374,15 @@ def _call(job: _Job, xs, ps, out) -> None:
         return
     work = np.empty(work_size(system), dtype=real_dtype(system))
     sweep_c = getattr(system.lib, f"{layout.prefix}_sweep")
-    sweep_c(job.method_id, len(xs), c_pointer(system, xs), c_pointer(system, ps), job.t0, job.h, job.n_steps,
-            job.stride, int(job.project), int(job.track_energy), c_pointer(system, out["x_final"]),
+    driven, summaries = (), ()
+    if layout.inputs:
+        xs, times, table_values = xs.x, xs.times, xs.values
+        driven = (c_pointer(system, times), c_pointer(system, table_values), times.shape[1], job.hold)
+    if layout.measurements:
+        summaries = tuple(c_pointer(system, out[key]) for key in ("y_final", "y_min", "y_max"))
+    sweep_c(job.method_id, len(xs), c_pointer(system, xs), c_pointer(system, ps), *driven, job.t0, job.h,
+            job.n_steps, job.stride, int(job.project), int(job.track_energy), *summaries,
+            c_pointer(system, out["x_final"]),
             c_pointer(system, out["q_max"]),
             c_pointer(system, out["energy_error"]), ffi.from_buffer("int[]", out["status"]),
             ffi.from_buffer("long[]", out["steps_done"]),
@@ -447,4 +500,5 @@ def _result(job: _Job, columns, values, axes, out, completed: bool, errors=()) -
         energy_error=out["energy_error"] if job.track_energy else None, status=out["status"],
         steps_done=out["steps_done"], blowup_time=blowup, t=t, trajectories=out["traj"],
         state_names=layout.coordinates + layout.speeds, coordinate_names=layout.coordinates,
-        completed=completed, kernel="lanes" if job.lanes else "scalar", errors=tuple(errors))
+        completed=completed, kernel="lanes" if job.lanes else "scalar", errors=tuple(errors),
+        y_final=out["y_final"], y_min=out["y_min"], y_max=out["y_max"], measurement_names=layout.measurements)

@@ -91,9 +91,10 @@ def member_arrays(system: CompiledSystem, columns, values, x0, params):
         if name in fixed:
             raise ValueError(f"{name!r} is fixed at build time and cannot be swept; free parameters: "
                              f"{', '.join(layout.parameters) or 'none'}")
-        if name not in layout.parameters and name not in state_names:
+        if name not in layout.parameters and name not in state_names and name not in layout.inputs:
+            inputs = f", nor an input ({', '.join(layout.inputs)})" if layout.inputs else ""
             raise ValueError(f"cannot sweep {name!r}: not a free parameter ({', '.join(layout.parameters) or 'none'})"
-                             f" nor a state variable ({', '.join(state_names)})")
+                             f" nor a state variable ({', '.join(state_names)}){inputs}")
     bad = [name for j, name in enumerate(columns) if not np.all(np.isfinite(values[:, j]))]
     if bad:
         raise ValueError(f"swept values of {', '.join(bad)} are not all finite")
@@ -107,6 +108,59 @@ def member_arrays(system: CompiledSystem, columns, values, x0, params):
     for j, name in enumerate(columns):
         if name in layout.parameters:
             ps[:, layout.parameters.index(name)] = values[:, j]
-        else:
+        elif name in state_names:
             xs[:, state_names.index(name)] = values[:, j]
     return np.ascontiguousarray(xs, dtype=dtype), np.ascontiguousarray(ps, dtype=dtype)
+
+
+def member_input_tables(system: CompiledSystem, columns, values, inputs, member_inputs, t0: float, h: float,
+                        n_steps: int, stride: int):
+    """Per-member input tables (times (n_members, k), values (n_members, k, n_r)) for a driven model.
+
+    A swept input (a column named like it) scales that input's base signal from ``inputs``
+    (constant 1 where ``inputs`` gives none): its amplitude. ``member_inputs`` instead gives each
+    member its own inputs, as `simulate` takes them (no callables); shorter tables are padded
+    with their last knot, which reads the same.
+    """
+    from .inputs import InputError, InputTable, resolve_inputs
+
+    layout = system.layout
+    n_members, n_r = len(values), len(layout.inputs)
+    if not n_r:
+        if inputs is not None or member_inputs is not None:
+            raise InputError(f"model {layout.model!r} has no inputs; drop inputs= and member_inputs=")
+        return None
+    swept = [j for j, name in enumerate(columns) if name in layout.inputs]
+    if member_inputs is not None:
+        if inputs is not None or swept:
+            raise ValueError("give member_inputs= alone: not with inputs= or swept inputs")
+        if isinstance(member_inputs, (str, bytes, Mapping)) or len(member_inputs) != n_members:
+            raise InputError(f"member_inputs must give one input spec per member ({n_members}), got "
+                             f"{type(member_inputs).__name__}")
+        tables = []
+        for m, spec in enumerate(member_inputs):
+            if callable(spec) and not isinstance(spec, np.ndarray):
+                raise InputError(f"member_inputs[{m}] is a callable: sweeps take constants, arrays or tables")
+            try:
+                tables.append(resolve_inputs(layout, spec, t0, h, n_steps, stride))
+            except InputError as error:
+                raise InputError(f"member_inputs[{m}]: {error}") from None
+    else:
+        swept_names = {columns[j] for j in swept}
+        if inputs is None and set(layout.inputs) - swept_names:
+            missing = ", ".join(sorted(set(layout.inputs) - swept_names))
+            raise InputError(f"model {layout.model!r} is driven by {missing}: pass inputs= (the base signal) "
+                             "or sweep it")
+        if callable(inputs) and not isinstance(inputs, np.ndarray):
+            raise InputError("a sweep takes its inputs as constants, arrays or tables, not a callable")
+        base = InputTable(np.zeros(1), np.ones((1, n_r))) if inputs is None else \
+            resolve_inputs(layout, inputs, t0, h, n_steps, stride)
+        scale = np.ones((n_members, n_r))
+        for j in swept:
+            scale[:, layout.inputs.index(columns[j])] = values[:, j]
+        times = np.repeat(base.times[None, :], n_members, axis=0)
+        return times, base.values[None, :, :] * scale[:, None, :]
+    k = max(t.times.size for t in tables)
+    times = np.array([np.pad(t.times, (0, k - t.times.size), mode="edge") for t in tables])
+    table_values = np.array([np.pad(t.values, ((0, k - t.times.size), (0, 0)), mode="edge") for t in tables])
+    return times, table_values

@@ -58,6 +58,8 @@ class EquationsOfMotion:
     constraint_bias : ImmutableMatrix (m, 1); gamma
     inputs : tuple of Symbol, (n_r,)
         Plain symbols of the model's inputs r; they appear in F (and K), never in M.
+    measurements : tuple of (str, Expr)
+        Output expressions y = h(q, u, r, t) by name.
     """
 
     name: str
@@ -80,6 +82,7 @@ class EquationsOfMotion:
     constraint_rate: sp.ImmutableMatrix = sp.ImmutableMatrix(0, 1, [])
     constraint_bias: sp.ImmutableMatrix = sp.ImmutableMatrix(0, 1, [])
     inputs: tuple = ()
+    measurements: tuple = ()
 
     @property
     def m(self) -> int:
@@ -229,4 +232,6 @@ def assemble(model, coords, speeds, q, u, M, F, K, T, V, to_plain, inputs_checke
         name=model.name, route=route, t=TIME, coordinates=tuple(coords), speeds=tuple(speeds),
         q=tuple(q), u=tuple(u), parameters=parameters, parameter_values=values,
         mass_matrix=_immutable(M), forcing=_immutable(F), kinematics=_immutable(K),
-        kinetic_energy=T, potential_energy=V, points=tuple(points), inputs=r, **constrained)
+        kinetic_energy=T, potential_energy=V, points=tuple(points), inputs=r,
+        measurements=tuple((name, to_plain(y, f"measurement {name!r}")) for name, y in model.measurements.items()),
+        **constrained)

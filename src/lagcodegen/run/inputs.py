@@ -1,0 +1,246 @@
+"""Stage helper for run: the inputs r of a driven model, as the C drivers read them.
+
+`simulate` and `sweep` accept the inputs as a constant, an array sampled at every step (or every
+stride), a table (t_i, r_i) interpolated linearly in C, or a Python callable of (t, x). The first
+three become one `InputTable` of knots (an array becomes a step function: every value repeated at
+the next sample's time, so a zero-order hold reads it exactly); the callable becomes a cffi
+callback (`CallableInputs`), a Python call per step. Every check names the input it refused.
+"""
+from __future__ import annotations
+
+import math
+import numbers
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..status import Status
+
+HOLDS = {"zoh": 0, "foh": 1}
+#: a table must reach the run's end to within this fraction of a step (the last time is t0 + n h)
+_COVER_SLACK = 1e-9
+
+
+class InputError(ValueError):
+    """Inputs that cannot drive the run; the message names the input."""
+
+
+@dataclass(frozen=True)
+class InputTable:
+    """Knots of all inputs: ``times`` (k,) non-decreasing (a repeated time is a jump), ``values``
+    (k, n_r); read like the C ``<prefix>_table_inputs``."""
+
+    times: np.ndarray
+    values: np.ndarray
+
+    def at(self, t: float) -> np.ndarray:
+        """The inputs at time t: linear between knots, the later value at a jump, held beyond the ends."""
+        i = int(np.searchsorted(self.times, t, side="right")) - 1
+        if i < 0:
+            return self.values[0].copy()
+        if i + 1 >= len(self.times) or t <= self.times[i]:
+            return self.values[i].copy()
+        w = (t - self.times[i]) / (self.times[i + 1] - self.times[i])
+        return self.values[i] + w * (self.values[i + 1] - self.values[i])
+
+
+def hold_code(hold) -> int:
+    """``"zoh"`` (held over each step) or ``"foh"`` (a ramp between the step's ends), as the C flag."""
+    if not isinstance(hold, str) or hold.lower() not in HOLDS:
+        raise ValueError(f"hold must be one of {', '.join(map(repr, HOLDS))}, got {hold!r}")
+    return HOLDS[hold.lower()]
+
+
+def resolve_inputs(layout, inputs, t0: float, h: float, n_steps: int, stride: int):
+    """``inputs`` as an `InputTable` or, for a callable, the callable itself (checked later, per call)."""
+    names = layout.inputs
+    if not names:
+        if inputs is not None:
+            raise InputError(f"model {layout.model!r} has no inputs; drop inputs=")
+        return None
+    if inputs is None:
+        raise InputError(f"model {layout.model!r} is driven by the input(s) {', '.join(names)}: pass inputs= "
+                         "(a constant, an array per step, a table (t, r) or a callable f(t, x))")
+    if callable(inputs) and not isinstance(inputs, np.ndarray):
+        return inputs
+    t_end = t0 + n_steps * h
+    if isinstance(inputs, Mapping):
+        return _table_by_name(layout, inputs, t0, t_end)
+    if _is_table(inputs):
+        table = _table(inputs[0], inputs[1], names, ", ".join(names))
+        _check_cover(table, t0, t_end, h, ", ".join(names))
+        return table
+    values = np.asarray(_numbers(inputs, ", ".join(names)), dtype=float)
+    n_r = len(names)
+    if values.ndim == 0 or (values.ndim == 1 and values.size == n_r):
+        return _constant(values.reshape(n_r), names)
+    if values.ndim == 1 and n_r == 1:
+        values = values.reshape(-1, 1)
+    if values.ndim != 2 or values.shape[1] != n_r:
+        raise InputError(f"inputs of shape {values.shape} do not fit the {n_r} input(s) {', '.join(names)}: give "
+                         f"{n_r} constant value(s), an array of shape (steps, {n_r}), a table (t, r) or a callable")
+    return _sampled(values, names, t0, h, n_steps, stride)
+
+
+def _is_table(inputs) -> bool:
+    if not isinstance(inputs, tuple) or len(inputs) != 2:
+        return False
+    return all(not isinstance(part, (str, bytes)) and np.ndim(part) >= 1 for part in inputs)
+
+
+def _numbers(values, what: str):
+    """``values`` as a float array; a TypeError naming ``what`` for strings, None or objects."""
+    try:
+        raw = np.asarray(values)
+        if raw.dtype.kind in "bUSc":
+            raise TypeError(f"dtype {raw.dtype}")
+        return np.asarray(values, dtype=float)
+    except (TypeError, ValueError, OverflowError) as error:
+        raise TypeError(f"input {what}: values must be real numbers, got {values!r} ({error})") from None
+
+
+def _finite(values: np.ndarray, names, times=None) -> None:
+    bad = ~np.isfinite(values)
+    if bad.any():
+        row, column = (int(i) for i in np.argwhere(bad)[0])
+        where = f" at t = {times[row]:g}" if times is not None else ""
+        raise InputError(f"input {names[column]!r} is not finite{where}: {values[row, column]}")
+
+
+def _constant(values: np.ndarray, names) -> InputTable:
+    values = values.reshape(1, -1)
+    _finite(values, names)
+    return InputTable(times=np.zeros(1), values=values)
+
+
+def _sampled(values: np.ndarray, names, t0: float, h: float, n_steps: int, stride: int) -> InputTable:
+    """An array per step (n_steps or n_steps + 1 rows) or per stride, as a step function."""
+    rows = values.shape[0]
+    spacing = None
+    for every in dict.fromkeys((1, stride)):
+        samples = n_steps // every
+        if rows in (samples, samples + 1) and samples * every == n_steps:
+            spacing = every
+            break
+    if spacing is None:
+        expected = f"{n_steps} or {n_steps + 1}"
+        if stride > 1 and n_steps % stride == 0:
+            expected += f" (per step), or {n_steps // stride} or {n_steps // stride + 1} (per stride {stride})"
+        raise InputError(f"inputs {', '.join(names)}: an array of {rows} rows does not match the run: "
+                         f"expected {expected} rows")
+    times = np.array([t0 + k * spacing * h for k in range(rows)])
+    _finite(values, names, times)
+    # a step function: value k holds from knot k to knot k + 1, where value k + 1 takes over
+    step_times = np.repeat(times, 2)[1:]
+    step_values = np.repeat(values, 2, axis=0)[:-1]
+    return InputTable(times=step_times, values=step_values)
+
+
+def _table(times, values, names, what: str) -> InputTable:
+    times = np.asarray(_numbers(times, what), dtype=float)
+    values = np.asarray(_numbers(values, what), dtype=float)
+    if times.ndim != 1 or times.size < 1:
+        raise InputError(f"input {what}: the table's times must be a 1-D array, got shape {times.shape}")
+    if values.ndim == 1 and len(names) == 1:
+        values = values.reshape(-1, 1)
+    if values.shape != (times.size, len(names)):
+        raise InputError(f"input {what}: a table of {times.size} times needs values of shape "
+                         f"({times.size}, {len(names)}) (or ({times.size},) for one input), got {values.shape}")
+    if not np.all(np.isfinite(times)):
+        raise InputError(f"input {what}: the table's times are not finite: {times[~np.isfinite(times)][0]}")
+    steps = np.diff(times)
+    if np.any(steps <= 0):
+        k = int(np.argmax(steps <= 0))
+        raise InputError(f"input {what}: the table's times must increase, but t[{k + 1}] = {times[k + 1]:g} "
+                         f"follows t[{k}] = {times[k]:g}")
+    _finite(values, names, times)
+    return InputTable(times=times, values=values)
+
+
+def _check_cover(table: InputTable, t0: float, t_end: float, h: float, what: str) -> None:
+    if table.times.size == 1:
+        return
+    slack = _COVER_SLACK * abs(h)
+    if table.times[0] > t0 + slack or table.times[-1] < t_end - slack:
+        raise InputError(f"input {what}: the table covers t = {table.times[0]:g} .. {table.times[-1]:g}, "
+                         f"shorter than the run t = {t0:g} .. {t_end:g}")
+
+
+def _table_by_name(layout, inputs: Mapping, t0: float, t_end: float) -> InputTable:
+    """{name: constant or (times, values)}: every input named once; tables merged on the union of
+    their knots (linear interpolation on a finer grid reproduces each piecewise-linear signal)."""
+    names = layout.inputs
+    given = {(k.name if hasattr(k, "name") else str(k)): v for k, v in inputs.items()}
+    unknown = [k for k in given if k not in names]
+    if unknown:
+        raise InputError(f"unknown input(s) {', '.join(unknown)}; inputs of {layout.model!r}: {', '.join(names)}")
+    missing = [k for k in names if k not in given]
+    if missing:
+        raise InputError(f"no value for input(s) {', '.join(missing)} of {layout.model!r}")
+    tables = []
+    for name in names:
+        value = given[name]
+        if _is_table(value):
+            table = _table(value[0], value[1], (name,), repr(name))
+            _check_cover(table, t0, t_end, 1.0, repr(name))
+        elif isinstance(value, numbers.Real) and not isinstance(value, bool) or \
+                (isinstance(value, np.ndarray) and value.ndim == 0):
+            if isinstance(value, (bool, np.bool_)):
+                raise TypeError(f"input {name!r} must be a real number, got {value!r}")
+            table = _constant(np.array([float(value)]), (name,))
+        else:
+            raise InputError(f"input {name!r}: give a constant or a table (times, values), got {value!r}")
+        tables.append(table)
+    knots = np.unique(np.concatenate([t.times for t in tables if t.times.size > 1] or [np.zeros(1)]))
+    values = np.column_stack([[table.at(t)[0] for t in knots] for table in tables])
+    return InputTable(times=knots, values=values)
+
+
+class CallableInputs:
+    """A Python callable f(t, x) -> r behind the C drivers' input function (a cffi callback).
+
+    It never raises into C: a wrong shape or an exception stops the run with
+    ``Status.INPUT_FAILED``, a NaN or infinite value with ``NONFINITE_INPUT``; ``detail`` says
+    which input and why, ``error`` keeps the exception.
+    """
+
+    def __init__(self, system, function: Callable):
+        self.function = function
+        self.names = system.layout.inputs
+        self.n_state = 2 * system.layout.n
+        self.dtype = np.float32 if system.layout.precision == "float" else np.float64
+        self.detail: str | None = None
+        self.error: BaseException | None = None
+        ffi = system.ffi
+        self._ffi = ffi
+        self.callback = ffi.callback(f"{system.layout.prefix}_input_fn", self._call)
+
+    def _fail(self, code: Status, detail: str) -> int:
+        self.detail = detail
+        return int(code)
+
+    def _call(self, context, t, x_pointer, r_pointer) -> int:
+        ffi, dtype = self._ffi, self.dtype
+        x = np.frombuffer(ffi.buffer(x_pointer, self.n_state * np.dtype(dtype).itemsize), dtype=dtype).copy()
+        try:
+            result = self.function(float(t), x)
+        except Exception as error:  # noqa: BLE001 - reported through the run's status, with the culprit
+            self.error = error
+            return self._fail(Status.INPUT_FAILED, f"the input callable raised {type(error).__name__}: {error} "
+                                                   f"at t = {float(t):g}")
+        try:
+            values = np.asarray(result, dtype=float).reshape(-1) if np.ndim(result) <= 1 else None
+        except (TypeError, ValueError):
+            values = None
+        if values is None or values.size != len(self.names):
+            shape = np.shape(result) if not isinstance(result, (str, bytes)) else type(result).__name__
+            return self._fail(Status.INPUT_FAILED, f"the input callable returned {shape!r} at t = {float(t):g}; "
+                                                   f"expected {len(self.names)} value(s) for {', '.join(self.names)}")
+        bad = [name for name, v in zip(self.names, values) if not math.isfinite(v)]
+        out = np.frombuffer(ffi.buffer(r_pointer, len(self.names) * np.dtype(dtype).itemsize), dtype=dtype)
+        out[:] = values
+        if bad:
+            return self._fail(Status.NONFINITE_INPUT, f"input {bad[0]!r} = {values[self.names.index(bad[0])]} at "
+                                                      f"t = {float(t):g}")
+        return int(Status.OK)

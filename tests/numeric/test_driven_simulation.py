@@ -1,0 +1,316 @@
+"""Driven models in C: inputs r held over a step (ZOH) or on a ramp (FOH), from a constant, an array
+per step or per stride, a table interpolated in C, or a Python callable of (t, x) (issue 13).
+
+Independent references, all written here without the code under test:
+- the damped oscillator m x'' + c x' + k x = F from rest under a constant F: the textbook step
+  response x(t) = F/k (1 - e^(-zeta w t) (cos w_d t + zeta / sqrt(1 - zeta^2) sin w_d t));
+- scipy's DOP853 at rtol = atol = 1e-12 on a numpy right-hand side of the same equation, with
+  the input signal from ``numpy.interp``, integrated knot to knot;
+- a numpy RK4 loop with the input held at r_k over step k (the discrete map the ZOH C step must
+  equal to rounding);
+- the Jacobian df/dr by hand: (0, 1/m).
+"""
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+import sympy as sp
+import sympy.physics.mechanics as me
+from scipy.integrate import solve_ivp
+
+from lagcodegen import Model
+from lagcodegen.pipeline import compile_model
+from lagcodegen.run.inputs import InputError
+from lagcodegen.run.simulate import jacobian, simulate, solve_reference
+from lagcodegen.run.sweep import sweep
+from lagcodegen.status import Status
+
+M, K, C = 1.0, 4.0, 0.5
+
+
+def oscillator_model(name="driven_oscillator"):
+    x, F = me.dynamicsymbols("x F")
+    m, k, c = sp.symbols("m k c", positive=True)
+    return Model(name, [x], [m, k, c], kinetic_energy=m * x.diff() ** 2 / 2, potential_energy=k * x ** 2 / 2,
+                 generalized_forces={x: F - c * x.diff()}, inputs=[F], parameter_values={"m": M, "k": K, "c": C})
+
+
+@pytest.fixture(scope="module")
+def oscillator(tmp_path_factory):
+    return compile_model(oscillator_model(), methods=("rk4", "euler", "radau_iia3", "symplectic_euler"),
+                         cache_dir=tmp_path_factory.mktemp("driven"))
+
+
+def step_response(t, force):
+    """m x'' + c x' + k x = force from rest (underdamped)."""
+    w = np.sqrt(K / M)
+    zeta = C / (2 * np.sqrt(K * M))
+    wd = w * np.sqrt(1 - zeta ** 2)
+    decay = np.exp(-zeta * w * t) * (np.cos(wd * t) + zeta / np.sqrt(1 - zeta ** 2) * np.sin(wd * t))
+    return force / K * (1 - decay)
+
+
+def numpy_rhs(signal):
+    def f(t, y):
+        return np.array([y[1], (signal(t, y) - C * y[1] - K * y[0]) / M])
+    return f
+
+
+def dop853(signal, t_eval, breaks=()):
+    """DOP853 at 1e-12 from rest, restarted at every knot of the signal."""
+    edges = [t_eval[0], *[b for b in breaks if t_eval[0] < b < t_eval[-1]], t_eval[-1]]
+    y, out = np.zeros(2), []
+    for a, b in zip(edges[:-1], edges[1:]):
+        inside = t_eval[(t_eval >= a) & (t_eval < b)]
+        solution = solve_ivp(numpy_rhs(signal), (a, b), y, method="DOP853", rtol=1e-12, atol=1e-12,
+                             t_eval=np.union1d(inside, [b]))
+        out.append(solution.y.T[np.isin(solution.t, inside)])
+        y = solution.y[:, -1]
+    out.append(y[None, :])
+    return np.concatenate(out)
+
+
+@pytest.mark.parametrize("method, tolerance", [("rk4", 1e-10), ("radau_iia3", 1e-7), ("symplectic_euler", 5e-4)])
+def test_a_constant_input_gives_the_textbook_step_response(oscillator, method, tolerance):
+    run = simulate(oscillator, {"x": 0.0}, t_end=3.0, h=1e-3, method=method, inputs=2.0)
+    assert run.ok
+    np.testing.assert_allclose(run["x"], step_response(run.t, 2.0), atol=tolerance)
+    assert np.all(run.inputs == 2.0) and run["F"].shape == run.t.shape
+
+
+def test_a_table_on_a_first_order_hold_matches_dop853_at_fourth_order(oscillator):
+    knots = np.linspace(0.0, 2.0, 11)
+    values = np.sin(3 * knots) + knots ** 2 / 4
+    signal = lambda t, y: np.interp(t, knots, values)  # noqa: E731
+    errors = []
+    for h in (1e-2, 5e-3):
+        run = simulate(oscillator, {"x": 0.0}, t_end=2.0, h=h, inputs=(knots, values), hold="foh")
+        reference = dop853(signal, run.t, knots)
+        errors.append(np.abs(run.x - reference).max())
+        np.testing.assert_allclose(run["F"], np.interp(run.t, knots, values), rtol=0, atol=1e-14)
+    assert errors[1] < 1e-9
+    assert 12 < errors[0] / errors[1] < 20  # 2^4: the knots lie on the steps, so RK4 keeps its order
+    # the same table held over each step is a first-order method in h
+    zoh = [np.abs(simulate(oscillator, {"x": 0.0}, t_end=2.0, h=h, inputs=(knots, values)).x
+                  - dop853(signal, np.linspace(0, 2, int(round(2 / h)) + 1), knots)).max() for h in (1e-2, 5e-3)]
+    assert 1.8 < zoh[0] / zoh[1] < 2.2
+
+
+def test_solve_reference_reads_the_same_signal(oscillator):
+    knots = np.linspace(0.0, 1.0, 6)
+    values = np.cos(2 * knots)
+    t_eval = np.linspace(0, 1, 101)
+    _, ours = solve_reference(oscillator, {"x": 0.0}, t_eval, inputs=(knots, values))
+    np.testing.assert_allclose(ours, dop853(lambda t, y: np.interp(t, knots, values), t_eval, knots)[:, :],
+                               atol=1e-10)
+
+
+def rk4_held(r_steps, h, n_steps):
+    """Numpy RK4 with r_k held over step k: the discrete plant x+ = step(x, r)."""
+    y, out = np.zeros(2), [np.zeros(2)]
+    for k in range(n_steps):
+        f = numpy_rhs(lambda t, y, r=r_steps[k]: r)
+        k1 = f(0, y)
+        k2 = f(0, y + h / 2 * k1)
+        k3 = f(0, y + h / 2 * k2)
+        k4 = f(0, y + h * k3)
+        y = y + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+        out.append(y)
+    return np.array(out)
+
+
+def test_an_array_per_step_is_held_over_each_step(oscillator):
+    h, n = 0.01, 200
+    r = np.sin(0.7 * np.arange(n)) + 0.3
+    run = simulate(oscillator, {"x": 0.0}, t_end=n * h, h=h, inputs=r)
+    np.testing.assert_allclose(run.x, rk4_held(r, h, n), rtol=1e-12, atol=1e-13)
+    np.testing.assert_array_equal(run["F"][:-1], r)
+    # n + 1 rows: the last only recorded; a 2-D (n, 1) array is the same
+    again = simulate(oscillator, {"x": 0.0}, t_end=n * h, h=h, inputs=np.append(r, 9.0).reshape(-1, 1))
+    np.testing.assert_array_equal(again.x, run.x)
+    assert again["F"][-1] == 9.0
+
+
+def test_an_array_per_stride_is_held_over_the_stride(oscillator):
+    h, n, stride = 0.01, 200, 10
+    r = np.cos(np.arange(n // stride))
+    run = simulate(oscillator, {"x": 0.0}, t_end=n * h, h=h, stride=stride, inputs=r)
+    np.testing.assert_allclose(run.x, rk4_held(np.repeat(r, stride), h, n)[::stride], rtol=1e-12, atol=1e-13)
+
+
+def test_the_exported_step_takes_r(oscillator):
+    """x+ = step(x, r, p): the embedded engineer's plant, called directly through cffi."""
+    ffi, lib, prefix = oscillator.ffi, oscillator.lib, oscillator.layout.prefix
+    t = ffi.new("double *", 0.0)
+    x = ffi.new("double[]", [0.0, 0.0])
+    r = ffi.new("double[]", [1.5])
+    p = ffi.new("double[]", [M, K, C])
+    work = ffi.new("double[]", int(getattr(lib, f"{prefix.upper()}_WORK_RK4")))
+    for _ in range(100):
+        assert getattr(lib, f"{prefix}_step_rk4")(t, x, r, p, 0.01, work) == Status.OK
+    np.testing.assert_allclose([x[0], x[1]], rk4_held([1.5] * 100, 0.01, 100)[-1], rtol=1e-13)
+    assert t[0] == pytest.approx(1.0)
+    # first-order hold from r0 to r1 over one step equals the driver's foh on a two-knot table
+    x2 = ffi.new("double[]", [0.0, 0.0])
+    t[0] = 0.0
+    getattr(lib, f"{prefix}_step_rk4_foh")(t, x2, ffi.new("double[]", [0.0]), ffi.new("double[]", [2.0]), p, 0.5,
+                                           work)
+    run = simulate(oscillator, {"x": 0.0}, t_end=0.5, h=0.5, inputs=([0.0, 0.5], [0.0, 2.0]), hold="foh",
+                   check_stability=False)
+    np.testing.assert_array_equal([x2[0], x2[1]], run.x[-1])
+
+
+def test_a_feedback_callable_closes_the_loop(oscillator):
+    """F = -3 x - 1.5 x' makes m x'' + (c + 1.5) x' + (k + 3) x = 0: against DOP853 on that system."""
+    gain = lambda t, state: [-3.0 * state[0] - 1.5 * state[1]]  # noqa: E731
+    run = simulate(oscillator, {"x": 1.0}, t_end=2.0, h=1e-3, inputs=gain)
+    solution = solve_ivp(lambda t, y: [y[1], (-(K + 3) * y[0] - (C + 1.5) * y[1]) / M], (0, 2), [1.0, 0.0],
+                         method="DOP853", rtol=1e-12, atol=1e-12, t_eval=run.t)
+    # ZOH of a feedback law: first order in h (h = 1e-3)
+    np.testing.assert_allclose(run.x, solution.y.T, atol=3e-3)
+    np.testing.assert_allclose(run["F"], -3.0 * run["x"] - 1.5 * run.x[:, 1], atol=1e-14)
+
+
+def test_inputs_by_name_merge_tables_and_constants(tmp_path):
+    x, F, G = me.dynamicsymbols("x F G")
+    m = sp.symbols("m", positive=True)
+    model = Model("two_inputs", [x], [m], kinetic_energy=m * x.diff() ** 2 / 2, generalized_forces={x: F + 2 * G},
+                  inputs=[F, G], parameter_values={"m": 1.0})
+    system = compile_model(model, methods=("rk4",), cache_dir=tmp_path)
+    knots = np.array([0.0, 0.5, 1.0])
+    run = simulate(system, {"x": 0.0}, t_end=1.0, h=0.01, inputs={"F": (knots, [0.0, 1.0, 0.0]), "G": 0.25},
+                   hold="foh")
+    np.testing.assert_allclose(run["G"], 0.25)
+    np.testing.assert_allclose(run["F"], np.interp(run.t, knots, [0.0, 1.0, 0.0]), atol=1e-15)
+    # x'' = F + 2 G from rest, by hand: x(1) = integral_0^1 (1 - s) (F(s) + 2 G) ds
+    # = 2 G / 2 + (the triangle's area 1/2 times 1 - its centroid 1/2) = 0.25 + 0.25; RK4 on a
+    # forcing linear between knots that lie on the steps is exact (x is a cubic there)
+    assert run["x"][-1] == pytest.approx(0.5, abs=1e-12)
+
+
+def test_the_jacobian_gives_df_dr(oscillator):
+    J, B = jacobian(oscillator, [0.1, -0.2], [M, K, C], r=[0.3], with_inputs=True)
+    np.testing.assert_allclose(J, [[0, 1], [-K / M, -C / M]], atol=1e-15)
+    np.testing.assert_allclose(B, [[0.0], [1.0 / M]], atol=1e-15)
+
+
+def test_float_kernels_with_inputs(tmp_path):
+    system = compile_model(oscillator_model("driven_oscillator_f32"), methods=("rk4",), precision="float",
+                           cache_dir=tmp_path)
+    run = simulate(system, {"x": 0.0}, t_end=2.0, h=1e-2, inputs=2.0)
+    assert run.ok and run.x.dtype == np.float32
+    np.testing.assert_allclose(run["x"], step_response(run.t.astype(float), 2.0), atol=1e-5)
+
+
+# -- bad input: each names the input; a failure mid-run keeps the trajectory so far ------------------
+@pytest.mark.parametrize("inputs, match", [
+    (None, "driven by the input"),
+    (([0.0, 1.0, 0.5, 2.0], [0, 1, 2, 3]), r"must increase, but t\[2\] = 0.5 follows t\[1\] = 1"),
+    (([0.0, 0.5], [0.0, 1.0]), "shorter than the run"),
+    (([0.0, 1.0, 2.0], [[0.0, 1.0]] * 3), r"values of shape \(3, 1\)"),
+    (([0.0, 2.0], [0.0, np.nan]), r"input 'F' is not finite at t = 2"),
+    (np.ones(7), "7 rows does not match the run"),
+    ({"G": 1.0}, "unknown input"),
+    ({}, "no value for input"),
+    (float("inf"), "input 'F' is not finite"),
+])
+def test_bad_inputs_are_named(oscillator, inputs, match):
+    with pytest.raises(InputError, match=match):
+        simulate(oscillator, {"x": 0.0}, t_end=2.0, h=0.01, inputs=inputs)
+
+
+def test_bad_input_types_and_holds(oscillator):
+    with pytest.raises(TypeError, match="real numbers"):
+        simulate(oscillator, {"x": 0.0}, t_end=1.0, h=0.01, inputs="0.5")
+    with pytest.raises(ValueError, match="hold must be one of"):
+        simulate(oscillator, {"x": 0.0}, t_end=1.0, h=0.01, inputs=0.5, hold="cubic")
+    with pytest.raises(ValueError, match="hold='foh'.*callable"):
+        simulate(oscillator, {"x": 0.0}, t_end=1.0, h=0.01, inputs=lambda t, x: [0.0], hold="foh")
+
+
+def test_an_undriven_model_refuses_inputs(tmp_path):
+    x = me.dynamicsymbols("x")
+    model = Model("free_mass", [x], [], kinetic_energy=x.diff() ** 2 / 2, potential_energy=x ** 2 / 2)
+    system = compile_model(model, methods=("rk4",), cache_dir=tmp_path)
+    with pytest.raises(InputError, match="has no inputs"):
+        simulate(system, {"x": 1.0}, t_end=1.0, h=0.01, inputs=1.0)
+
+
+@pytest.mark.parametrize("callable_, status, detail", [
+    (lambda t, x: 1 / 0 if t > 0.5 else [0.0], Status.INPUT_FAILED, "raised ZeroDivisionError"),
+    (lambda t, x: [0.0, 1.0] if t > 0.5 else [0.0], Status.INPUT_FAILED, r"returned \(2,\).*expected 1 value"),
+    (lambda t, x: [np.nan] if t > 0.5 else [0.0], Status.NONFINITE_INPUT, "input 'F' = nan"),
+    (lambda t, x: "a" if t > 0.5 else [0.0], Status.INPUT_FAILED, "returned"),
+])
+def test_a_failing_callable_stops_with_a_status_and_keeps_the_run(oscillator, callable_, status, detail):
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        run = simulate(oscillator, {"x": 1.0}, t_end=1.0, h=0.01, inputs=callable_)
+    assert run.status == status
+    assert len(run.t) == 52 and run.t[-1] == pytest.approx(0.51)  # every sample up to the failing read
+    assert np.isnan(run.inputs[-1]).all() and np.all(run.inputs[:-1] == 0.0)
+    assert np.all(np.isfinite(run.x))
+    import re
+    assert re.search(detail, run.message) and any(re.search(detail, str(w.message)) for w in caught)
+
+
+# -- measurements y = h(q, u, r, t) and sweeps over input amplitudes ------------------------------
+@pytest.fixture(scope="module")
+def measured(tmp_path_factory):
+    x, F = me.dynamicsymbols("x F")
+    m, k, c = sp.symbols("m k c", positive=True)
+    model = Model("driven_measured", [x], [m, k, c], kinetic_energy=m * x.diff() ** 2 / 2,
+                  potential_energy=k * x ** 2 / 2, generalized_forces={x: F - c * x.diff()}, inputs=[F],
+                  parameter_values={"m": M, "k": K, "c": C},
+                  measurements={"spring_force": -k * x, "input_power": F * x.diff()})
+    return compile_model(model, methods=("rk4",), cache_dir=tmp_path_factory.mktemp("measured"))
+
+
+def test_measurements_are_recorded_by_name(measured):
+    knots = np.linspace(0, 2, 5)
+    run = simulate(measured, {"x": 0.1}, t_end=2.0, h=1e-3, inputs=(knots, np.cos(knots)))
+    assert run.measurement_names == ("spring_force", "input_power")
+    np.testing.assert_allclose(run["spring_force"], -K * run["x"], rtol=1e-15)  # the definitions, by hand
+    np.testing.assert_allclose(run["input_power"], run["F"] * run.x[:, 1], rtol=1e-15)
+
+
+def test_a_sweep_over_input_amplitude_scales_the_base_signal(measured):
+    knots = np.array([0.0, 1.0, 2.0])
+    shape = np.array([0.0, 1.0, 1.0])
+    result = sweep(measured, {"F": [0.5, 2.0], "k": [1.0, 4.0]}, x0={"x": 0.0}, t_end=2.0, h=1e-3,
+                   inputs=(knots, shape), hold="foh")
+    for member, (amplitude, k) in enumerate(result.values):
+        # second route: one simulate per member with the scaled table
+        run = simulate(measured, {"x": 0.0}, t_end=2.0, h=1e-3, inputs=(knots, amplitude * shape), hold="foh",
+                       params={"k": k})
+        np.testing.assert_allclose(result.x_final[member], run.x[-1], rtol=1e-13)
+        np.testing.assert_allclose(result.y_final[member], run.measurements[-1], rtol=1e-13)
+        np.testing.assert_allclose(result.y_min[member], run.measurements.min(axis=0), rtol=1e-13)
+        np.testing.assert_allclose(result.y_max[member], run.measurements.max(axis=0), rtol=1e-13)
+    # a swept input with no base signal is a constant: the textbook step response's end value
+    constant = sweep(measured, {"F": [1.0, 2.0]}, x0={"x": 0.0}, t_end=3.0, h=1e-3)
+    np.testing.assert_allclose(constant.x_final[:, 0], step_response(3.0, np.array([1.0, 2.0])), atol=1e-10)
+
+
+def test_member_inputs_give_each_member_its_own_signal(measured):
+    specs = [1.0, ([0.0, 1.0, 2.0], [0.0, 1.0, 1.0])]
+    result = sweep(measured, members={"k": [1.0, 4.0]}, x0={"x": 0.0}, t_end=2.0, h=1e-3, member_inputs=specs)
+    for member, spec in enumerate(specs):
+        run = simulate(measured, {"x": 0.0}, t_end=2.0, h=1e-3, inputs=spec, params={"k": result.values[member, 0]})
+        np.testing.assert_allclose(result.x_final[member], run.x[-1], rtol=1e-13)
+
+
+def test_bad_sweep_inputs_are_named(measured):
+    with pytest.raises(InputError, match="driven by F"):
+        sweep(measured, {"k": [1.0, 2.0]}, x0={"x": 0.0}, t_end=1.0, h=0.01)
+    with pytest.raises(InputError, match="not a callable"):
+        sweep(measured, {"k": [1.0, 2.0]}, x0={"x": 0.0}, t_end=1.0, h=0.01, inputs=lambda t, x: [0.0])
+    with pytest.raises(InputError, match="one input spec per member"):
+        sweep(measured, {"k": [1.0, 2.0]}, x0={"x": 0.0}, t_end=1.0, h=0.01, member_inputs=[1.0])
+    with pytest.raises(InputError, match=r"member_inputs\[1\]: input F: the table covers"):
+        sweep(measured, {"k": [1.0, 2.0]}, x0={"x": 0.0}, t_end=1.0, h=0.01,
+              member_inputs=[1.0, ([0.0, 0.5], [1.0, 1.0])])
+    with pytest.raises(ValueError, match=r"nor an input \(F\)"):
+        sweep(measured, {"G": [1.0]}, x0={"x": 0.0}, t_end=1.0, h=0.01, inputs=1.0)
