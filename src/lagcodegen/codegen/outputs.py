@@ -159,6 +159,13 @@ def _jacobian_obstacle(eom: EquationsOfMotion) -> str | None:
     return None
 
 
+def _step_jacobian_obstacle(eom: EquationsOfMotion) -> str | None:
+    if eom.m:
+        return (f"the step_jacobian output (dx+/dx, dx+/dr of the explicit steps) is not available for the "
+                f"constrained model {eom.name!r}")
+    return None
+
+
 def _momentum_obstacle_message(eom: EquationsOfMotion) -> str | None:
     reason = momentum_obstacle(eom)
     if reason is None:
@@ -347,7 +354,8 @@ class Output:
     returns a status after checking its values are finite; ``calls_dynamics``: its body calls the
     unconstrained-form solve ``<prefix>_dynamics``; ``template_functions``: functions the
     templates write for it (declared with it); ``default``: in `DEFAULT_OUTPUTS`;
-    ``constrained``: every constrained model gets it.
+    ``constrained``: every constrained model gets it; ``requires``: outputs whose C functions
+    it calls (added with it). A ``write`` that returns None leaves the function to the templates.
     """
 
     name: str
@@ -360,6 +368,7 @@ class Output:
     template_functions: Callable[[KernelWriter], list] = lambda w: []
     default: bool = False
     constrained: bool = False
+    requires: tuple = ()
 
 
 OUTPUTS: dict[str, Output] = {o.name: o for o in (
@@ -377,6 +386,8 @@ OUTPUTS: dict[str, Output] = {o.name: o for o in (
            template_functions=_constraints_template_functions, constrained=True),
     Output("multipliers", "dynamics", _multipliers_c, obstacle=_needs_constraints("multipliers"), checked=True,
            constrained=True),
+    Output("step_jacobian", "jacobian", lambda w, kernel: None, obstacle=_step_jacobian_obstacle,
+           requires=("jacobian",)),
 )}
 DEFAULT_OUTPUTS = tuple(name for name, o in OUTPUTS.items() if o.default)
 
@@ -393,8 +404,9 @@ def checked_outputs(eom: EquationsOfMotion, outputs) -> list:
         reason = output.obstacle(eom)
         if reason is not None:
             raise KernelError(reason)
-        if name not in chosen:
-            chosen.append(name)
+        for needed in output.requires + (name,):
+            if needed not in chosen:
+                chosen.append(needed)
     if not chosen:
         raise KernelError("no outputs requested")
     return chosen

@@ -152,7 +152,8 @@ def render_sources(system: ReducedSystem, precision: str = "double", model_name:
     real = precision
     writer = KernelWriter(system, names, printer, real)
     functions = support_functions(writer)
-    functions += [OUTPUTS[out].write(writer, system.kernel(OUTPUTS[out].kernel)) for out in system.outputs]
+    written = [OUTPUTS[out].write(writer, system.kernel(OUTPUTS[out].kernel)) for out in system.outputs]
+    functions += [f for f in written if f is not None]
     has_dynamics = any(OUTPUTS[out].kernel == "dynamics" for out in system.outputs)
     steppers = stepper_context(system, names, real, list(methods))
     steppers |= lane_context(system, names, real, list(methods), lanes, lane_trig)

@@ -57,7 +57,7 @@ def stepper_context(system, names, real: str, methods: list) -> dict:
                "pivot_jump": _literal(PIVOT_JUMP, real), "pivot_collapse": _literal(PIVOT_COLLAPSE[real], real),
                "pivot_jump_text": f"{PIVOT_JUMP:g}",
                "pivot_collapse_text": f"{PIVOT_COLLAPSE[real]:.0e}".replace("e-0", "e-"),
-               "n_pivots": n + system.n_constraints} | input_context(system, names, real)
+               "n_pivots": n + system.n_constraints, "step_jacobians": []} | input_context(system, names, real)
     if not methods:
         return context
     if "rhs" not in system.outputs and "accel" not in system.outputs:
@@ -130,6 +130,7 @@ def stepper_context(system, names, real: str, methods: list) -> dict:
                      f"{real} *energy_out, {real} *points_out, {real} *residuals_out, {real} *multipliers_out, "
                      f"{real} *work, long *steps_done", "Fixed-step integration loop; returns a status code.", [])
     context["exported"] += foh
+    context |= _step_jacobian_context(system, context, prefix, real, methods)
     if system.inputs:
         context["exported"].append(_record(
             "int", f"{prefix}_table_inputs", f"void *context, {real} t, const {real} *x, {real} *r",
@@ -154,6 +155,37 @@ def stepper_context(system, names, real: str, methods: list) -> dict:
     context["records_multipliers"] = "multipliers" in system.outputs
     context["exported"].append(sweep)
     return context
+
+
+def _step_jacobian_context(system, context: dict, prefix: str, real: str, methods) -> dict:
+    """The step Jacobians dx+/dx (and dx+/dr) of the explicit methods, when the step_jacobian
+    output is asked for: one exported function per method over one generic C routine."""
+    from ..integrators.schemes import KIND_EXPLICIT, get_scheme
+
+    if "step_jacobian" not in system.outputs:
+        return {"step_jacobians": []}
+    n, n_r = len(system.q), len(system.inputs)
+    N = 2 * n
+    rows = []
+    for name in dict.fromkeys(methods):
+        scheme = get_scheme(name)
+        if scheme.stepper != KIND_EXPLICIT:
+            continue
+        s = scheme.stages
+        work = s * N + N + s * N * (N + n_r) + N * N + N * n_r + N * (N + n_r)
+        inputs = f"const {real} *r, " if n_r else ""
+        matrices = f"{real} *Fx, {real} *Fr" if n_r else f"{real} *Fx"
+        record = _record(
+            "int", f"{prefix}_step_jacobian_{scheme.name}",
+            f"{real} *t, {real} *x, {inputs}const {real} *p, {real} h, {matrices}, {real} *work",
+            f"One step of {scheme.title or scheme.name} as {prefix}_step_{scheme.name}, also writing its exact "
+            f"Jacobians Fx = dx+/dx (row-major {N} x {N})"
+            + (f" and Fr = dx+/dr ({N} x {n_r}, the inputs held)" if n_r else "")
+            + f"; work holds {work} values.", [])
+        context["exported"].append(record)
+        rows.append({"name": scheme.name, "stages": s, "work": work,
+                     "work_macro": f"{prefix.upper()}_WORK_JACOBIAN_{scheme.name.upper()}"})
+    return {"step_jacobians": rows, "n_jacobian_columns": N + n_r}
 
 
 def _exported_call(prefix: str, name: str, driven: bool) -> str:

@@ -560,3 +560,41 @@ def make_rhs(system: CompiledSystem, params: Mapping | None = None, inputs=None)
             raise FloatingPointError(f"rhs failed at t = {t}: {Status(code).message}")
         return out
     return f
+
+
+def step_jacobians(system: CompiledSystem, x, p, h: float, method: str = "rk4", r=None, t: float = 0.0):
+    """One compiled explicit step from (t, x) with inputs ``r`` held, and its exact Jacobians.
+
+    Returns (x_next (2n,), Fx = dx+/dx (2n, 2n), Fr = dx+/dr (2n, n_r)): the discrete plant's
+    linearization for an extended Kalman filter, MPC or a discrete LQR. Needs the kernel built
+    with the ``step_jacobian`` output and ``method`` (an explicit Runge-Kutta method) compiled in.
+    """
+    layout = system.layout
+    method = compiled_method(system, method)
+    name = f"{layout.prefix}_step_jacobian_{method}"
+    if name not in layout.functions:
+        raise ValueError(f"model {layout.model!r} has no step Jacobian for {method!r}: compile it with "
+                         "outputs=(..., 'step_jacobian') and an explicit method")
+    dtype, size, n_r = real_dtype(system), 2 * layout.n, len(layout.inputs)
+    state = np.array(initial_state(system, x), dtype=dtype)
+    p = np.ascontiguousarray(p, dtype=dtype)
+    h = real_number(h, "h")
+    Fx = np.empty((size, size), dtype=dtype)
+    Fr = np.empty((size, n_r), dtype=dtype)
+    work = np.empty(int(getattr(system.lib, f"{layout.prefix.upper()}_WORK_JACOBIAN_{method.upper()}")), dtype=dtype)
+    time = system.ffi.new("float *" if dtype == np.float32 else "double *", t)
+    arguments = [time, c_pointer(system, state)]
+    if n_r:
+        if r is None:
+            raise ValueError(f"model {layout.model!r} is driven by {', '.join(layout.inputs)}: pass r=")
+        r = np.ascontiguousarray(np.reshape(r, -1), dtype=dtype)
+        if r.size != n_r or not np.all(np.isfinite(r)):
+            raise ValueError(f"r must be {n_r} finite value(s) for {', '.join(layout.inputs)}, got {r}")
+        arguments.append(c_pointer(system, r))
+    arguments += [c_pointer(system, p), h, c_pointer(system, Fx)]
+    if n_r:
+        arguments.append(c_pointer(system, Fr))
+    code = getattr(system.lib, name)(*arguments, c_pointer(system, work))
+    if code != Status.OK:
+        raise ValueError(f"step Jacobian of {method} failed at x = {state}: {Status(code).message}")
+    return state, Fx, Fr

@@ -1,0 +1,131 @@
+"""Step Jacobians dx+/dx and dx+/dr of the explicit methods (issue 13, item 5).
+
+Independent references:
+- for the linear oscillator x' = A x + B r the exact discrete maps: explicit Euler
+  x+ = (I + hA) x + hB r, RK4 x+ = P(hA) x + h Q(hA) B r with P the degree-4 Taylor polynomial of
+  exp and Q(z) = 1 + z/2 + z^2/6 + z^3/24 (Hairer-Norsett-Wanner I, sec. II.1);
+- central finite differences of the compiled step itself on the nonlinear cart-pole;
+- the continuous A, B as h -> 0: (Fx - I)/h -> A and Fr/h -> B, with A and B derived by hand
+  from the cart-pole's Lagrangian (the upright linearization in examples/cart_pole_lqr.py).
+"""
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+
+import numpy as np
+import pytest
+import sympy as sp
+import sympy.physics.mechanics as me
+
+from lagcodegen import Model
+from lagcodegen.codegen.outputs import KernelError
+from lagcodegen.pipeline import compile_model
+from lagcodegen.run.simulate import simulate, step_jacobians
+from lagcodegen.statics.state_space import linearize_state
+from lagcodegen.symbolic.derive import derive_equations
+
+EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "cart_pole_lqr.py"
+M, K, C = 1.0, 4.0, 0.5
+
+
+def load_example():
+    spec = importlib.util.spec_from_file_location("cart_pole_lqr", EXAMPLE)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.fixture(scope="module")
+def oscillator(tmp_path_factory):
+    x, F = me.dynamicsymbols("x F")
+    m, k, c = sp.symbols("m k c", positive=True)
+    model = Model("jac_oscillator", [x], [m, k, c], kinetic_energy=m * x.diff() ** 2 / 2,
+                  potential_energy=k * x ** 2 / 2, generalized_forces={x: F - c * x.diff()}, inputs=[F],
+                  parameter_values={"m": M, "k": K, "c": C})
+    return compile_model(model, methods=("rk4", "euler", "dopri5"), outputs=("rhs", "step_jacobian"),
+                         cache_dir=tmp_path_factory.mktemp("jac"))
+
+
+@pytest.fixture(scope="module")
+def cart_pole(tmp_path_factory):
+    example = load_example()
+    plant = compile_model(example.cart_pole(), methods=("rk4", "dopri5"), outputs=("rhs", "step_jacobian"),
+                          cache_dir=tmp_path_factory.mktemp("cart_pole"))
+    p = [example.PARAMETERS[name] for name in plant.layout.parameters]
+    return example, plant, p
+
+
+def test_linear_maps_are_exact(oscillator):
+    A = np.array([[0.0, 1.0], [-K / M, -C / M]])
+    B = np.array([[0.0], [1.0 / M]])
+    x0, r0, h = [0.3, -0.1], [0.7], 0.1
+    z = h * A
+    eye = np.eye(2)
+    P = eye + z + z @ z / 2 + z @ z @ z / 6 + z @ z @ z @ z / 24
+    Q = h * (eye + z / 2 + z @ z / 6 + z @ z @ z / 24) @ B
+    x1, Fx, Fr = step_jacobians(oscillator, x0, [M, K, C], h, "rk4", r=r0)
+    np.testing.assert_allclose(Fx, P, atol=1e-15)
+    np.testing.assert_allclose(Fr, Q, atol=1e-15)
+    np.testing.assert_allclose(x1, P @ x0 + Q[:, 0] * r0[0], atol=1e-15)
+    x1, Fx, Fr = step_jacobians(oscillator, x0, [M, K, C], h, "euler", r=r0)
+    np.testing.assert_allclose(Fx, eye + z, atol=1e-15)
+    np.testing.assert_allclose(Fr, h * B, atol=1e-15)
+    # the step it takes is the compiled simulate's step
+    run = simulate(oscillator, x0, t_end=h, h=h, method="rk4", inputs=r0, check_stability=False)
+    np.testing.assert_array_equal(step_jacobians(oscillator, x0, [M, K, C], h, "rk4", r=r0)[0], run.x[-1])
+
+
+@pytest.mark.parametrize("method", ["rk4", "dopri5"])
+def test_nonlinear_step_jacobians_match_finite_differences(cart_pole, method):
+    _, plant, p = cart_pole
+    x0, r0, h = np.array([0.1, 0.7, -0.4, 1.3]), np.array([2.5]), 0.02
+    _, Fx, Fr = step_jacobians(plant, x0, p, h, method, r=r0)
+    step = lambda x, r: step_jacobians(plant, x, p, h, method, r=r)[0]  # noqa: E731
+    eps = 1e-6
+    fd_x = np.column_stack([(step(x0 + eps * e, r0) - step(x0 - eps * e, r0)) / (2 * eps) for e in np.eye(4)])
+    fd_r = ((step(x0, r0 + eps) - step(x0, r0 - eps)) / (2 * eps))[:, None]
+    np.testing.assert_allclose(Fx, fd_x, rtol=1e-7, atol=1e-8)
+    np.testing.assert_allclose(Fr, fd_r, rtol=1e-7, atol=1e-9)
+
+
+def test_step_jacobians_tend_to_the_continuous_a_and_b(cart_pole):
+    example, plant, p = cart_pole
+    mc, mp, length, g = (example.PARAMETERS[k] for k in ("m_cart", "m_pole", "l", "g"))
+    # by hand from L = T - V at upright: (mc + mp) x'' + mp l th'' = F, x'' + l th'' = g th
+    A = np.zeros((4, 4))
+    A[0, 2] = A[1, 3] = 1.0
+    A[2, 1], A[3, 1] = -mp * g / mc, (mc + mp) * g / (mc * length)
+    B = np.array([[0.0], [0.0], [1 / mc], [-1 / (mc * length)]])
+    symbolic = linearize_state(derive_equations(example.cart_pole()), [0, 0, 0, 0], [0], values=example.PARAMETERS)
+    np.testing.assert_allclose(symbolic.A, A, atol=1e-12)
+    np.testing.assert_allclose(symbolic.B, B, atol=1e-12)
+    errors = []
+    for h in (1e-2, 1e-3):
+        _, Fx, Fr = step_jacobians(plant, [0, 0, 0, 0], p, h, "rk4", r=[0.0])
+        errors.append(max(np.abs((Fx - np.eye(4)) / h - A).max(), np.abs(Fr / h - B).max()))
+    assert errors[1] < 2e-2 and 8 < errors[0] / errors[1] < 12  # first order in h: (Fx - I)/h = A + hA^2/2 + ...
+
+
+def test_float_step_jacobians(tmp_path):
+    example = load_example()
+    plant = compile_model(example.cart_pole(), methods=("rk4",), outputs=("rhs", "step_jacobian"), precision="float",
+                          cache_dir=tmp_path)
+    p = [example.PARAMETERS[name] for name in plant.layout.parameters]
+    _, Fx, Fr = step_jacobians(plant, [0.1, 0.2, 0.0, 0.0], p, 0.01, r=[1.0])
+    assert Fx.dtype == np.float32
+    double = compile_model(example.cart_pole(), methods=("rk4",), outputs=("rhs", "step_jacobian"), cache_dir=tmp_path)
+    _, Fx64, Fr64 = step_jacobians(double, [0.1, 0.2, 0.0, 0.0], p, 0.01, r=[1.0])
+    np.testing.assert_allclose(Fx, Fx64, atol=1e-5)
+    np.testing.assert_allclose(Fr, Fr64, atol=1e-6)
+
+
+def test_step_jacobians_are_refused_where_they_do_not_exist(oscillator):
+    from lagcodegen import catalog
+
+    with pytest.raises(KernelError, match="step_jacobian.*constrained model 'four_bar'"):
+        compile_model(catalog.four_bar(), methods=("rk4",), outputs=("rhs", "step_jacobian"))
+    with pytest.raises(ValueError, match="is driven by F: pass r="):
+        step_jacobians(oscillator, [0.0, 0.0], [M, K, C], 0.1)
+    with pytest.raises(ValueError, match="r must be 1 finite value"):
+        step_jacobians(oscillator, [0.0, 0.0], [M, K, C], 0.1, r=[np.nan])
