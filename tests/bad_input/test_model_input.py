@@ -248,3 +248,21 @@ def test_parameter_values_accept_names():
 def test_bad_parameter_values_are_named(values, names):
     with raises_naming(*names):
         oscillator(parameter_values=values)
+
+
+@pytest.mark.parametrize("measurements, match", [
+    ({"x": "x"}, "measurement 'x' has the name of a coordinate or input"),
+    ({"F": "x"}, "measurement 'F' has the name of a coordinate or input"),
+    ({"acc": "xdd"}, "measurement 'acc' contains the acceleration"),
+    ({"bad": "zz"}, "measurement 'bad' uses symbols not declared as parameters: zz"),
+    ({"1a": "x"}, "measurement name '1a' must be an identifier"),
+    ({"u": "nan"}, "measurement 'u' is nan"),
+])
+def test_bad_measurements_are_named(measurements, match):
+    """Output expressions y = h(q, u, r, t) (issue 13): each refusal names the measurement."""
+    x, F = me.dynamicsymbols("x F")
+    m = sp.symbols("m")
+    table = {"x": x, "xdd": x.diff(me.dynamicsymbols._t, 2), "zz": sp.Symbol("zz"), "nan": sp.nan}
+    with pytest.raises(ModelError, match=match):
+        Model("sensed", [x], [m], kinetic_energy=m * x.diff() ** 2 / 2, generalized_forces={x: F}, inputs=[F],
+              measurements={name: table[key] for name, key in measurements.items()})

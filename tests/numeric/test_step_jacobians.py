@@ -129,3 +129,22 @@ def test_step_jacobians_are_refused_where_they_do_not_exist(oscillator):
         step_jacobians(oscillator, [0.0, 0.0], [M, K, C], 0.1)
     with pytest.raises(ValueError, match="r must be 1 finite value"):
         step_jacobians(oscillator, [0.0, 0.0], [M, K, C], 0.1, r=[np.nan])
+
+
+def test_c_and_d_of_the_measurements():
+    """y = (pole tip x, pole tip y) = (x + l sin th, l cos th): C by hand at any state; D = 0;
+    a measurement that reads the force directly has D = its coefficient."""
+    example = load_example()
+    eom = derive_equations(example.cart_pole())
+    th = 0.3
+    linear = linearize_state(eom, [0.2, th, 0.5, -1.0], [1.5], values=example.PARAMETERS)
+    length = example.PARAMETERS["l"]
+    assert linear.measurements == ("pole_tip_x", "pole_tip_y")
+    np.testing.assert_allclose(linear.C, [[1, length * np.cos(th), 0, 0], [0, -length * np.sin(th), 0, 0]], atol=1e-14)
+    np.testing.assert_allclose(linear.D, np.zeros((2, 1)), atol=0)
+    x, F = me.dynamicsymbols("x F")
+    m, c = sp.symbols("m c", positive=True)
+    model = Model("sensed", [x], [m, c], kinetic_energy=m * x.diff() ** 2 / 2, generalized_forces={x: F - c * x.diff()},
+                  inputs=[F], measurements={"net_force": F - c * x.diff()})
+    exact = linearize_state(derive_equations(model), [0, 0], [0])
+    assert exact.C == sp.Matrix([[0, -c]]) and exact.D == sp.Matrix([[1]])

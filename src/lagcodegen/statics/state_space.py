@@ -38,6 +38,9 @@ class StateSpace:
     t0 : float or Expr
     A : ndarray (2n, 2n) with values, else sympy ImmutableMatrix
     B : ndarray (2n, n_r) with values, else sympy ImmutableMatrix (2n x 0 without inputs)
+    C, D : like A and B, (n_y, 2n) and (n_y, n_r)
+        ``dy = C dx + D dr`` for the model's measurements y = h(q, u, r, t) (0 rows without).
+    measurements : tuple of str, (n_y,)
     """
 
     states: tuple
@@ -47,6 +50,9 @@ class StateSpace:
     t0: Any
     A: Any
     B: Any
+    C: Any = None
+    D: Any = None
+    measurements: tuple = ()
 
     def eigenvalues(self) -> np.ndarray:
         """Eigenvalues of A (complex), sorted by modulus (the natural frequency), then imaginary part."""
@@ -76,7 +82,7 @@ def _numeric(matrix, name: str) -> np.ndarray:
 
 def linearize_state(eom: EquationsOfMotion, x0: Any, r0: Any = None, values: Mapping | None = None,
                     t0: Any = 0) -> StateSpace:
-    """A and B of ``xd = f(x, r, t)`` about (x0, r0, t0).
+    """A and B of ``xd = f(x, r, t)`` about (x0, r0, t0), and C, D of the measurements y = h(x, r, t).
 
     Parameters
     ----------
@@ -126,6 +132,10 @@ def linearize_state(eom: EquationsOfMotion, x0: Any, r0: Any = None, values: Map
     parts = {"M": M, "F": F, "K": K, "dF/dq": F.jacobian(eom.q), "dF/du": F.jacobian(eom.u),
              "dK/dx": K.jacobian(states), "dF/dr": F.jacobian(r) if r else sp.zeros(eom.n, 0),
              "dK/dr": K.jacobian(r) if r else sp.zeros(eom.n, 0)}
+    Y = sp.Matrix([y for _, y in eom.measurements]) if eom.measurements else sp.zeros(0, 1)
+    parts["dh/dx"] = Y.jacobian(states) if eom.measurements else sp.zeros(0, 2 * eom.n)
+    parts["dh/dr"] = Y.jacobian(r) if eom.measurements and r else sp.zeros(len(eom.measurements), len(r))
+    names = tuple(name for name, _ in eom.measurements)
     dM = [M.diff(qc) for qc in eom.q]
     for name, matrix in parts.items():
         _check_smooth(eom, matrix, name)
@@ -138,7 +148,8 @@ def linearize_state(eom: EquationsOfMotion, x0: Any, r0: Any = None, values: Map
         A = here["dK/dx"].col_join(A_lower)
         B = here["dK/dr"].col_join(solve(here["dF/dr"])) if r else sp.zeros(2 * eom.n, 0)
         return StateSpace(states, tuple(r), point, held, t0, sp.ImmutableMatrix(sp.simplify(A)),
-                          sp.ImmutableMatrix(sp.simplify(B)))
+                          sp.ImmutableMatrix(sp.simplify(B)), sp.ImmutableMatrix(sp.simplify(here["dh/dx"])),
+                          sp.ImmutableMatrix(sp.simplify(here["dh/dr"])), names)
     vals = resolve_values(eom, values)
     number = lambda X, what: np.array(  # noqa: E731
         substitute_values(eom, X.xreplace(at), vals, f"linearization: {what}").evalf(), dtype=float)
@@ -156,7 +167,8 @@ def linearize_state(eom: EquationsOfMotion, x0: Any, r0: Any = None, values: Map
     numbers = {p: sp.Float(v) for p, v in vals.items()}
     as_float = lambda v: float(sp.sympify(v).xreplace(numbers))  # noqa: E731
     return StateSpace(states, tuple(r), tuple(map(as_float, point)), tuple(map(as_float, held)),
-                      as_float(t0), A, B)
+                      as_float(t0), A, B, here["dh/dx"].reshape(len(names), 2 * eom.n),
+                      here["dh/dr"].reshape(len(names), len(r)), names)
 
 
 def _state_point(eom: EquationsOfMotion, x0: Any) -> tuple:
