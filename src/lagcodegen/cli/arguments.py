@@ -138,6 +138,46 @@ def parse_assignments(items, option: str) -> dict:
     return values
 
 
+def parse_inputs(items) -> dict | None:
+    """``--input`` values: name -> a constant, or (times, values) from a CSV file of two columns
+    (a header row is skipped); None when no --input was given."""
+    if not items:
+        return None
+    inputs = {}
+    for item in items:
+        name, sep, value = (part.strip() for part in item.partition("="))
+        if not sep or not name or not value:
+            raise UsageError(f"--input {item!r} must look like name=value or name=table.csv")
+        if name in inputs:
+            raise UsageError(f"--input {name!r} is given twice")
+        try:
+            number = float(value)
+        except ValueError:
+            inputs[name] = _input_table(name, Path(value))
+            continue
+        if not math.isfinite(number):
+            raise UsageError(f"--input {name!r} must be finite, got {value!r}")
+        inputs[name] = number
+    return inputs
+
+
+def _input_table(name: str, path: Path) -> tuple:
+    import numpy as np
+
+    if not path.is_file():
+        raise UsageError(f"--input {name}: {str(path)!r} is neither a number nor a file")
+    try:
+        rows = [line for line in path.read_text().splitlines() if line.strip()]
+        if rows and not rows[0].lstrip()[:1].lstrip("+-.").isdigit():
+            rows = rows[1:]  # a header
+        table = np.array([[float(v) for v in row.split(",")] for row in rows], dtype=float)
+    except (OSError, UnicodeDecodeError, ValueError) as error:
+        raise UsageError(f"--input {name}: cannot read {path} as a CSV table of numbers ({error})") from None
+    if table.ndim != 2 or table.shape[0] < 1 or table.shape[1] != 2:
+        raise UsageError(f"--input {name}: {path} must have two columns (time, value), got shape {table.shape}")
+    return table[:, 0], table[:, 1]
+
+
 def parse_axis(item: str) -> tuple:
     """``name=start:stop:count`` (linspace), ``name=start:stop:count:log`` (geomspace) or
     ``name=v1,v2,...`` (explicit values) -> (name, values)."""
@@ -276,6 +316,13 @@ def add_run_arguments(parser) -> None:
                         help="fold a parameter into the C code as a constant (repeatable or comma-separated)")
     parser.add_argument("--stride", type=positive_int, default=1, metavar="K",
                         help="keep every K-th state of a trajectory (default: 1)")
+    parser.add_argument("--input", action="append", metavar="NAME=VALUE|NAME=FILE.csv",
+                        help="driven models: an input held constant (--input tau=0.5) or read from a CSV "
+                             "table of time and value columns, interpolated linearly (--input tau=torque.csv); "
+                             "repeatable")
+    parser.add_argument("--hold", choices=("zoh", "foh"), default="zoh",
+                        help="inputs over a step: held at the step's start (zoh, default) or on a line to its "
+                             "end (foh)")
     parser.add_argument("--project", action="store_true",
                         help="models with holonomic constraints: project the state back onto them after every "
                              "step (Baumgarte instead: --param baumgarte_alpha=10,baumgarte_beta=10)")

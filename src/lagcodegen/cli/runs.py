@@ -20,9 +20,12 @@ from .arguments import (
     load_model,
     parse_assignments,
     parse_grid,
+    parse_inputs,
     positive_int,
     read_table,
 )
+
+from ..run.inputs import InputError
 
 #: a trajectory may take at most this share of the machine's physical memory
 MEMORY_SHARE = 0.5
@@ -43,7 +46,7 @@ def prepare_run(args, command: str, swept=()) -> tuple:
     where = (f"free parameters of {eom.name}: {', '.join(free) or 'none'}; "
              f"state variables: {', '.join(states)}")
     for option, names, allowed in (("--fixed", fixed, parameters), ("--param", params, parameters),
-                                   ("--x0", x0, states), ("--grid/--table", swept, free + states)):
+                                   ("--x0", x0, states), ("--grid/--table", swept, free + states + [r.name for r in eom.inputs])):
         for name in names:
             if name in fixed and option != "--fixed":
                 raise UsageError(f"{name!r} in {option} is fixed by --fixed; {where}")
@@ -147,6 +150,7 @@ def compile_for(eom, method: str, fixed: dict, *, energy: bool, points: bool):
     from ..pipeline import compile_model
 
     outputs = ["rhs"] + ["energy"] * (energy and eom.energy is not None) + ["points"] * (points and bool(eom.points))
+    outputs += ["measurements"] * bool(eom.measurements)
     outputs += ["constraints", "multipliers"] if eom.m else []  # residuals, multipliers, --project
     try:
         return compile_model(eom, outputs=outputs, fixed=fixed or None, methods=(method,))
@@ -187,13 +191,20 @@ def cmd_simulate(args) -> int:
     system = compile_for(eom, args.method, fixed, energy=args.energy, points=True)
     compile_time, start = time.perf_counter() - start, time.perf_counter()
     constrained = bool(system.layout.n_constraints)
-    run = simulate(system, x0, args.t_end, args.h, args.method, params=params, stride=args.stride,
-                   energy=args.energy, points=bool(system.layout.points), project=args.project,
-                   residuals=constrained, multipliers=constrained)
+    try:
+        run = simulate(system, x0, args.t_end, args.h, args.method, params=params, stride=args.stride,
+                       energy=args.energy, points=bool(system.layout.points), project=args.project,
+                       residuals=constrained, multipliers=constrained, inputs=parse_inputs(args.input),
+                       hold=args.hold)
+    except InputError as error:
+        raise UsageError(f"--input: {error}") from None
     elapsed = time.perf_counter() - start
     print(f"{eom.name}, {run.method}, h = {args.h:g}, {steps} steps to t = {args.t_end:g}: {run.message}")
     print(f"state at t = {run.t[-1]:.9g} (last kept sample): "
           + ", ".join(f"{n} = {v:.9g}" for n, v in zip(run.names, run.x[-1])))
+    if run.measurements is not None:
+        print("measurements at the last kept sample: "
+              + ", ".join(f"{n} = {v:.9g}" for n, v in zip(run.measurement_names, run.measurements[-1])))
     if run.energy is not None:
         drift = float(np.max(np.abs(run.energy - run.energy[0])))
         relative = drift / abs(float(run.energy[0])) if run.energy[0] else float("inf")
@@ -339,7 +350,9 @@ def cmd_sweep(args) -> int:
         result = sweep(system, **({"grid": members} if args.grid else {"members": members}), x0=x0,
                        t_end=args.t_end, h=args.h, method=args.method, params=params,
                        trajectories=args.trajectories, stride=args.stride, threads=args.threads, client=client,
-                       project=args.project)
+                       project=args.project, inputs=parse_inputs(args.input), hold=args.hold)
+    except InputError as error:
+        raise UsageError(f"--input: {error}") from None
     finally:
         if client is not None:
             client.close()

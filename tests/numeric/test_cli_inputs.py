@@ -1,0 +1,86 @@
+"""``lagcodegen simulate/sweep ... --input NAME=VALUE|NAME=FILE.csv [--hold foh]`` on a driven model
+file (issue 13, item 7). Expected values: the damped oscillator's textbook step response
+x(t) = F/k (1 - e^(-zeta w t)(cos w_d t + zeta/sqrt(1 - zeta^2) sin w_d t)), and RK4 on a forcing
+linear between knots on the steps, which is exact for this linear system up to RK4's own error."""
+from __future__ import annotations
+
+import re
+
+import numpy as np
+import pytest
+
+from lagcodegen.cli.arguments import EXIT_USAGE
+from lagcodegen.cli.commands import main
+
+MODEL = '''
+import sympy as sp, sympy.physics.mechanics as me
+from lagcodegen import Model
+x, F = me.dynamicsymbols("x F")
+m, k, c = sp.symbols("m k c", positive=True)
+model = Model("driven_cli", [x], [m, k, c], kinetic_energy=m * x.diff()**2/2, potential_energy=k*x**2/2,
+              generalized_forces={x: F - c*x.diff()}, inputs=[F], parameter_values={"m": 1.0, "k": 4.0, "c": 0.5},
+              measurements={"spring_force": -k * x})
+'''
+
+
+def step_response(t, force, k=4.0, c=0.5, m=1.0):
+    w, zeta = np.sqrt(k / m), c / (2 * np.sqrt(k * m))
+    wd = w * np.sqrt(1 - zeta ** 2)
+    return force / k * (1 - np.exp(-zeta * w * t) * (np.cos(wd * t) + zeta / np.sqrt(1 - zeta ** 2) * np.sin(wd * t)))
+
+
+@pytest.fixture
+def model_file(tmp_path):
+    path = tmp_path / "driven.py"
+    path.write_text(MODEL)
+    return path
+
+
+def final_x(text: str) -> float:
+    return float(re.search(r"x = (-?[\d.e+-]+),", text).group(1))
+
+
+def test_a_constant_input(model_file, capsys):
+    code = main(["simulate", str(model_file), "--t-end", "2", "--h", "1e-3", "--x0", "x=0", "--input", "F=0.5"])
+    out = capsys.readouterr().out
+    assert code == 0
+    assert final_x(out) == pytest.approx(step_response(2.0, 0.5), abs=1e-8)
+    spring = float(re.search(r"spring_force = (-?[\d.e+-]+)", out).group(1))
+    assert spring == pytest.approx(-4 * final_x(out), rel=1e-8)  # its definition -k x
+
+
+def test_a_csv_table_on_a_first_order_hold(model_file, tmp_path, capsys):
+    table = tmp_path / "force.csv"
+    table.write_text("t,F\n0,1\n2,1\n")  # a constant written as a table: the same step response
+    code = main(["simulate", str(model_file), "--t-end", "2", "--h", "1e-3", "--x0", "x=0", "--input",
+                 f"F={table}", "--hold", "foh"])
+    assert code == 0
+    assert final_x(capsys.readouterr().out) == pytest.approx(step_response(2.0, 1.0), abs=1e-8)
+
+
+def test_a_sweep_over_the_input(model_file, tmp_path, capsys):
+    out = tmp_path / "sweep.npz"
+    code = main(["sweep", str(model_file), "--t-end", "2", "--h", "1e-3", "--x0", "x=0", "--grid", "F=0.5,2",
+                 "--out", str(out)])
+    assert code == 0
+    data = np.load(out)
+    np.testing.assert_allclose(data["x_final"][:, 0], step_response(2.0, np.array([0.5, 2.0])), atol=1e-8)
+
+
+@pytest.mark.parametrize("extra, message", [
+    ([], "driven by the input"),
+    (["--input", "F=nope.csv"], "'nope.csv' is neither a number nor a file"),
+    (["--input", "F"], "must look like name=value"),
+    (["--input", "F=1", "--input", "F=2"], "'F' is given twice"),
+    (["--input", "G=1"], "unknown input"),
+    (["--input", "F=inf"], "must be finite"),
+    (["--input", "F=TABLE"], "shorter than the run"),
+    (["--input", "F=BAD"], "must have two columns"),
+])
+def test_bad_inputs_on_the_command_line(model_file, tmp_path, capsys, extra, message):
+    (tmp_path / "short.csv").write_text("0,1\n1,1\n")
+    (tmp_path / "bad.csv").write_text("0,1,2\n1,1,2\n")
+    extra = [e.replace("TABLE", str(tmp_path / "short.csv")).replace("BAD", str(tmp_path / "bad.csv")) for e in extra]
+    code = main(["simulate", str(model_file), "--t-end", "2", "--h", "1e-3", "--x0", "x=0", *extra])
+    assert code == EXIT_USAGE
+    assert message in capsys.readouterr().err
