@@ -8,6 +8,7 @@ import sys
 import time
 from pathlib import Path
 
+from ..run.inputs import InputError
 from .arguments import (
     EXIT_FAILED,
     EXIT_INTERRUPTED,
@@ -24,8 +25,6 @@ from .arguments import (
     positive_int,
     read_table,
 )
-
-from ..run.inputs import InputError
 
 #: a trajectory may take at most this share of the machine's physical memory
 MEMORY_SHARE = 0.5
