@@ -314,3 +314,29 @@ def test_bad_sweep_inputs_are_named(measured):
               member_inputs=[1.0, ([0.0, 0.5], [1.0, 1.0])])
     with pytest.raises(ValueError, match=r"nor an input \(F\)"):
         sweep(measured, {"G": [1.0]}, x0={"x": 0.0}, t_end=1.0, h=0.01, inputs=1.0)
+
+
+def test_the_lane_kernel_takes_inputs_held_per_member(tmp_path):
+    """Constant inputs per member ride in the lane kernel as parameters: with libm's sin/cos in the
+    lanes, every member equals the scalar kernel's bit for bit (the second route), and varying
+    inputs fall back to the scalar kernel."""
+    import dataclasses
+
+    from lagcodegen import catalog
+
+    base = catalog.double_pendulum()
+    q1, q2 = base.coordinates
+    tau1, tau2 = me.dynamicsymbols("tau1 tau2")
+    model = dataclasses.replace(base, name="lane_driven_dp", generalized_forces={q1: tau1 - tau2, q2: tau2},
+                                inputs=[tau1, tau2])
+    system = compile_model(model, methods=("rk4",), lanes=4, lane_trig="libm", cache_dir=tmp_path)
+    grid = {"tau1": np.linspace(-1, 1, 6), "m1": [0.5, 1.0, 2.0]}
+    common = dict(x0={"q1": 1.0, "q2": 0.5}, t_end=2.0, h=1e-3, inputs={"tau1": 1.0, "tau2": -0.3},
+                  track_energy=False)
+    lanes = sweep(system, grid, kernel="lanes", **common)
+    scalar = sweep(system, grid, kernel="scalar", **common)
+    assert lanes.kernel == "lanes" and scalar.kernel == "scalar"
+    np.testing.assert_array_equal(lanes.x_final, scalar.x_final)
+    np.testing.assert_array_equal(lanes.status, scalar.status)
+    with pytest.raises(ValueError, match="inputs that vary in time run on the scalar kernel"):
+        sweep(system, grid, kernel="lanes", **(common | {"inputs": {"tau1": ([0, 2], [0, 1]), "tau2": 0.0}}))

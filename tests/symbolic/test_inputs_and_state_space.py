@@ -242,3 +242,22 @@ def test_sympy_driven_models_match_sympy_with_their_inputs(name, build):
     assert sp.simplify(kane.forcing.xreplace(kin).xreplace(rename) - eom.forcing) == sp.zeros(eom.n, 1)
     with pytest.raises(ModelError, match="inputs="):
         derive_equations(Model(name, parameters=parameters, sympy_model=build()))
+
+
+@pytest.mark.parametrize("route", ["energies", "bodies"])
+def test_governor_relative_equilibrium_in_the_first_order_form(route):
+    """The governor spinning at omega about its relative equilibrium cos a0 = (P + Q) g / (P l omega^2):
+    A has eigenvalues +-i w with w^2 = P omega^2 sin^2 a0 / (P + 2 Q sin^2 a0) (hand derivation,
+    as in test_statics), so its damping ratios are 0."""
+    from lagcodegen import catalog
+
+    eom = derive_equations(catalog.centrifugal_governor(route))
+    v = {p.name: x for p, x in eom.parameter_values.items()}
+    P, Q, length, g, omega = (v[k] for k in ("P", "Q", "l", "g", "omega"))
+    a0 = np.arccos((P + Q) * g / (P * length * omega ** 2))
+    s2 = np.sin(a0) ** 2
+    w = np.sqrt(P * omega ** 2 * s2 / (P + 2 * Q * s2))
+    linear = linearize_state(eom, [a0, 0.0], values={})
+    np.testing.assert_allclose(np.sort(linear.eigenvalues().imag), [-w, w], rtol=1e-10)
+    np.testing.assert_allclose(linear.eigenvalues().real, 0.0, atol=1e-10)
+    np.testing.assert_allclose(linear.damping_ratios(), 0.0, atol=1e-10)

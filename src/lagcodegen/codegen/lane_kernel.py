@@ -62,12 +62,12 @@ class LanePrinter(CPrinter):
 
 
 def lanes_apply(system, methods) -> bool:
-    """True when the lane kernel can serve this system: unconstrained, without inputs (members of a
-    driven model run on the scalar sweep, which reads their input tables), rhs, an explicit method."""
+    """True when the lane kernel can serve this system: unconstrained, rhs, an explicit method. A
+    driven model's lanes take inputs constant per member, as parameters after the free ones (a
+    sweep over input amplitudes); inputs that vary in time run on the scalar sweep."""
     from ..integrators.schemes import get_scheme
 
-    return (any(get_scheme(m).lane_capable for m in methods) and not system.n_constraints
-            and not system.inputs and "rhs" in system.outputs)
+    return any(get_scheme(m).lane_capable for m in methods) and not system.n_constraints and "rhs" in system.outputs
 
 
 def lane_context(system, names, real: str, methods: list, lanes: int, trig: str = "fast") -> dict:
@@ -96,7 +96,9 @@ def lane_context(system, names, real: str, methods: list, lanes: int, trig: str 
                         f"{real} h, long n_steps, long stride, int track_energy, {real} *x_final, {real} *q_max, "
                         f"{real} *energy_error, int *status, long *steps_done, {real} *traj",
                         f"Many independent members, {lanes} side by side (explicit Runge-Kutta "
-                        "methods only; returns LCG_UNKNOWN_METHOD for others).", [])
+                        "methods only; returns LCG_UNKNOWN_METHOD for others)"
+                        + (f"; ps holds per member the free parameters, then its {len(system.inputs)} inputs, "
+                           "held constant." if system.inputs else "."), [])
     context = {
         "has_lanes": True, "lanes": lanes, "lane_fast_trig": trig == "fast",
         "lane_sin": "lcg_sinf_fast" if real == "float" else "lcg_sin_fast",
@@ -105,7 +107,9 @@ def lane_context(system, names, real: str, methods: list, lanes: int, trig: str 
         "lane_steppers": steppers, "lane_max_stages": max(get_scheme(s["name"]).stages for s in steppers),
         "lane_dynamics": _dynamics_lines(system, names, printer, real, lanes), "lane_energy": [],
         "n_state_lanes": 2 * n * lanes, "n_lanes": n * lanes,
-        "n_param_lanes": max(1, len(system.free_parameters)) * lanes,
+        "n_param_lanes": max(1, len(system.free_parameters) + len(system.inputs)) * lanes,
+        "lane_params": max(1, len(system.free_parameters) + len(system.inputs)),
+        "lane_inputs": f"p_lane + {len(system.free_parameters)}, " if system.inputs else "",
         "n_params_free": len(system.free_parameters), "sweep_lanes_decl": prototype["decl"],
         "lane_history": 2 * n * lanes, "lane_history_per_lane": 2 * n,  # the monitor: previous, initial pivots
         "lane_prototype": prototype,
@@ -139,6 +143,9 @@ def _head(kernel, names, printer, real: str, lanes: int) -> list:
     for s, i in names.param_index.items():
         if s in used:
             lines.append(f"const {real} {names.symbols[s]} = p[{i * lanes} + lcg_lane];")
+    for s, i in (names.input_index or {}).items():  # held per member: after the parameters
+        if s in used:
+            lines.append(f"const {real} {names.symbols[s]} = p[{(len(names.param_index) + i) * lanes} + lcg_lane];")
     lines.append(f"/* Intermediate terms ({len(kernel.temporaries)}) */")
     for s, expr in kernel.temporaries:
         lines.append(f"const {real} {names.symbols[s]} = {_print(printer, expr, names.symbols[s])};")

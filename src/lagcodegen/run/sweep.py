@@ -219,12 +219,16 @@ def sweep(system: CompiledSystem, grid: Mapping | None = None, *, members: Mappi
     xs, ps = member_arrays(system, columns, values, x0, params)
     ramp = hold_code(hold)
     tables = member_input_tables(system, columns, values, inputs, member_inputs, t0, h, n_steps, stride)
-    system = _kernel_system(system, method, project, kernel)
-    lanes = _lanes(system, method, project, kernel)
+    held = tables is not None and tables[0].shape[1] == 1  # every member's inputs constant in time
+    system = _kernel_system(system, method, project, kernel, tables is None or held)
+    lanes = _lanes(system, method, project, kernel, tables is None or held)
     job = _Job(system, layout.methods.index(method), t0, h, n_steps, stride, track_energy, trajectories, project,
                lanes, ramp)
-    if tables is not None:  # the tables travel with the members, chunk by chunk
-        dtype = real_dtype(system)
+    dtype = real_dtype(system)
+    if tables is not None and lanes:  # inputs held per member: the lane kernel reads them after the parameters
+        free = ps[:, :len(layout.parameters)]
+        ps = np.ascontiguousarray(np.hstack([free, tables[1][:, 0, :]]), dtype=dtype)
+    elif tables is not None:  # the tables travel with the members, chunk by chunk
         xs = _DrivenStates(xs, np.ascontiguousarray(tables[0], dtype=dtype),
                            np.ascontiguousarray(tables[1], dtype=dtype))
     out = _allocate(job, len(values))
@@ -268,11 +272,12 @@ def _check_sweep_size(layout, n_members: int, n_columns: int, n_steps: int, stri
                  "sweep fewer members (a coarser grid)", limit)
 
 
-def _kernel_system(system: CompiledSystem, method: str, project: bool, kernel: str) -> CompiledSystem:
+def _kernel_system(system: CompiledSystem, method: str, project: bool, kernel: str,
+                   held: bool = True) -> CompiledSystem:
     """``system``, or its lane variant (compiled on the first sweep that can use it)."""
-    if kernel != "scalar" and system.lane_build is not None and _lanes(system, method, project, "auto") == 0:
+    if kernel != "scalar" and system.lane_build is not None and _lanes(system, method, project, "auto", held) == 0:
         lane_system = system.lane_variant()
-        if _lanes(lane_system, method, project, "auto"):
+        if _lanes(lane_system, method, project, "auto", held):
             return lane_system
     return system
 
@@ -280,8 +285,9 @@ def _kernel_system(system: CompiledSystem, method: str, project: bool, kernel: s
 KERNELS = ("auto", "lanes", "scalar")
 
 
-def _lanes(system: CompiledSystem, method: str, project: bool, kernel: str) -> int:
-    """Lanes per group of the lane kernel for this sweep, or 0 for the scalar kernel."""
+def _lanes(system: CompiledSystem, method: str, project: bool, kernel: str, held: bool = True) -> int:
+    """Lanes per group of the lane kernel for this sweep, or 0 for the scalar kernel (``held``:
+    the members' inputs, if any, are constant in time)."""
     from ..integrators.schemes import get_scheme
 
     if kernel not in KERNELS:
@@ -292,6 +298,10 @@ def _lanes(system: CompiledSystem, method: str, project: bool, kernel: str) -> i
         reason = f"method {method!r} is not an explicit Runge-Kutta method"
     elif project:
         reason = "projection onto the constraints runs on the scalar kernel only"
+    elif not held:
+        reason = "inputs that vary in time run on the scalar kernel only"
+    elif layout.measurements:
+        reason = "the measurements' summaries are kept by the scalar kernel only"
     elif f"{layout.prefix}_sweep_lanes" not in layout.functions:
         reason = f"model {layout.model!r} was built without the lane kernel (compile_model(lanes=0), or constrained)"
     if reason is None and kernel != "scalar":
