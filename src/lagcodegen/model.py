@@ -95,7 +95,7 @@ class Model:
         Positions to output (plots, animation); Points need ``frame`` and ``origin``.
     parameter_values : mapping Symbol -> float, optional
         Default numeric values (used by examples and simulation when not overridden).
-    sympy_model : LagrangesMethod, KanesMethod or System, optional
+    sympy_model : LagrangesMethod, KanesMethod, System or JointsMethod, optional
         An existing sympy model; coordinates and speeds are taken from it.
     constraints : sequence of Expr, optional
         Holonomic constraints phi_i(q, t) = 0 (possibly rheonomic) between redundant coordinates:
@@ -476,6 +476,10 @@ def _as_load(load: Any) -> Load:
 
 
 def _sympy_model_coordinates(obj: Any) -> list:
+    if isinstance(obj, me.JointsMethod):  # its bodies and joints formed into a Kane or Lagrange method
+        if obj.method is None:
+            obj.form_eoms()
+        return _sympy_model_coordinates(obj.method)
     if isinstance(obj, me.System):
         _check_speeds(type(obj).__name__, obj.q_ind, obj.q_dep, obj.u_ind, obj.u_dep, obj.u_aux)
         return list(obj.q)
@@ -486,7 +490,8 @@ def _sympy_model_coordinates(obj: Any) -> list:
         _check_speeds(type(obj).__name__, obj._qdep and obj.q[:len(obj.q) - len(obj._qdep)] or obj.q,
                       obj._qdep, obj.u[:len(obj.u) - len(obj._udep)], obj._udep, obj._uaux)
         return list(obj.q)
-    raise ModelError(f"sympy_model must be a LagrangesMethod, KanesMethod or System, got {type(obj).__name__}")
+    raise ModelError(f"sympy_model must be a LagrangesMethod, KanesMethod, System or JointsMethod, got "
+                     f"{type(obj).__name__}")
 
 
 def _check_speeds(kind: str, q_ind, q_dep, u_ind, u_dep, u_aux) -> None:

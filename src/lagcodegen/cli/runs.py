@@ -44,8 +44,9 @@ def prepare_run(args, command: str, swept=()) -> tuple:
     free = [name for name in parameters if name not in fixed]
     where = (f"free parameters of {eom.name}: {', '.join(free) or 'none'}; "
              f"state variables: {', '.join(states)}")
+    inputs = [r.name for r in eom.inputs]
     for option, names, allowed in (("--fixed", fixed, parameters), ("--param", params, parameters),
-                                   ("--x0", x0, states), ("--grid/--table", swept, free + states + [r.name for r in eom.inputs])):
+                                   ("--x0", x0, states), ("--grid/--table", swept, free + states + inputs)):
         for name in names:
             if name in fixed and option != "--fixed":
                 raise UsageError(f"{name!r} in {option} is fixed by --fixed; {where}")

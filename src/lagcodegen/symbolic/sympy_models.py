@@ -1,4 +1,4 @@
-"""Stage: sympy LagrangesMethod / KanesMethod / System model -> EquationsOfMotion.
+"""Stage: sympy LagrangesMethod / KanesMethod / System / JointsMethod model -> EquationsOfMotion.
 
 sympy has already derived ``M ud = F`` for these objects; this route renames their
 dynamicsymbols to plain symbols and takes the kinematic equations from Kane's
@@ -48,6 +48,10 @@ def derive_from_sympy(model: Model):
 
 def _formed_method(obj):
     """The LagrangesMethod or KanesMethod behind ``obj``, with its equations formed."""
+    if isinstance(obj, me.JointsMethod):
+        if obj.method is None:
+            obj.form_eoms()
+        obj = obj.method
     if isinstance(obj, me.System):
         if obj.eom_method is None:
             obj.form_eoms()
@@ -63,7 +67,8 @@ def _formed_method(obj):
                                  "or pass bodies= to KanesMethod")
             obj.kanes_equations(obj.bodies, obj.loads)
         return obj
-    raise ModelError(f"sympy_model must be a LagrangesMethod, KanesMethod or System, got {type(obj).__name__}")
+    raise ModelError(f"sympy_model must be a LagrangesMethod, KanesMethod, System or JointsMethod, got "
+                     f"{type(obj).__name__}")
 
 
 def _energies(method, model: Model, to_plain):

@@ -1,0 +1,193 @@
+"""Maintenance tool: feed every system built by sympy.physics.mechanics' own test files to lagcodegen.
+
+Each test function of the installed sympy's ``test_kane*.py``, ``test_lagrange*.py``,
+``test_system*.py``, ``test_jointsmethod.py``, ``test_linearize.py`` and ``test_models.py`` runs
+with the equation-forming methods (``KanesMethod.kanes_equations``,
+``LagrangesMethod.form_lagranges_equations``, ``System.form_eoms``, ``JointsMethod.form_eoms``)
+wrapped to record the objects they formed. Each recorded system is then given to lagcodegen
+unchanged (``Model(name, parameters=<its free symbols>, sympy_model=obj, inputs=<its specified
+functions of t>)``): refused (with the message), or compiled and its rhs compared with sympy's own
+``mass_matrix_full \\ forcing_full`` at 3 random states with random parameters and inputs.
+
+    python tools/sympy_peer_survey.py            # the table, one line per system
+    python tools/sympy_peer_survey.py --json F   # also the rows as JSON
+
+The peer suite of issue 14 grows from this; `tests/symbolic/test_sympy_peer_survey.py` runs the
+small files.
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+import json
+import random
+import sys
+import time
+import traceback
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+import sympy as sp
+import sympy.physics.mechanics as me
+
+FILES = ("test_kane", "test_kane2", "test_kane3", "test_kane4", "test_kane5", "test_lagrange", "test_lagrange2",
+         "test_system", "test_system_class", "test_jointsmethod", "test_linearize", "test_models")
+SEED = 20261125
+TOLERANCE = 1e-10
+
+
+@dataclass
+class Recorded:
+    source: str
+    system: object
+    kind: str
+    rows: list = field(default_factory=list)
+
+
+def collect(files=FILES) -> list:
+    """Run the test functions of ``files`` and return every system whose equations they formed."""
+    recorded, current = [], {"source": ""}
+
+    def wrap(cls, name, kind):
+        original = getattr(cls, name)
+
+        def formed(self, *args, **kwargs):
+            result = original(self, *args, **kwargs)
+            if not any(r.system is self for r in recorded):
+                recorded.append(Recorded(current["source"], self, kind))
+            return result
+        return original, formed
+
+    patches = [(me.KanesMethod, "kanes_equations", "KanesMethod"),
+               (me.LagrangesMethod, "form_lagranges_equations", "LagrangesMethod"),
+               (me.System, "form_eoms", "System"), (me.JointsMethod, "form_eoms", "JointsMethod")]
+    saved = []
+    for cls, name, kind in patches:
+        original, formed = wrap(cls, name, kind)
+        saved.append((cls, name, original))
+        setattr(cls, name, formed)
+    try:
+        for file in files:
+            module = importlib.import_module(f"sympy.physics.mechanics.tests.{file}")
+            for name in sorted(n for n in dir(module) if n.startswith("test_")):
+                current["source"] = f"{file}.{name}"
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore")
+                    try:
+                        getattr(module, name)()
+                    except Exception:  # noqa: BLE001 - a failing sympy test still formed what it formed
+                        pass
+    finally:
+        for cls, name, original in saved:
+            setattr(cls, name, original)
+    # a System's and a JointsMethod's inner KanesMethod/LagrangesMethod is the same system
+    inner = {id(method_of(r.system)) for r in recorded if r.kind in ("System", "JointsMethod")}
+    return [r for r in recorded if id(r.system) not in inner]
+
+
+def method_of(obj):
+    """The KanesMethod or LagrangesMethod behind a System or JointsMethod (or obj itself)."""
+    if isinstance(obj, me.System):
+        return obj.eom_method
+    if isinstance(obj, me.JointsMethod):
+        return obj.method
+    return obj
+
+
+def specified_functions(method) -> list:
+    t = me.dynamicsymbols._t
+    q = list(method.q)
+    u = list(getattr(method, "u", [])) or [c.diff(t) for c in q]
+    known = set(q) | set(u) | {c.diff(t) for c in q} | {s.diff(t) for s in u}
+    found = me.find_dynamicsymbols(method.forcing) | me.find_dynamicsymbols(method.mass_matrix)
+    return sorted(found - known, key=str)
+
+
+def check(record: Recorded, index: int, cache_dir) -> dict:
+    """Feed one system to lagcodegen; the row says accepted / refused (why) / matching (error)."""
+    from lagcodegen import Model
+    from lagcodegen.pipeline import compile_model
+    from lagcodegen.run.simulate import make_rhs
+
+    row = {"source": record.source, "kind": record.kind}
+    method = method_of(record.system)
+    t = me.dynamicsymbols._t
+    try:
+        inputs = specified_functions(method)
+        parameters = sorted((method.mass_matrix.free_symbols | method.forcing.free_symbols) - {t}, key=str)
+        row["n_q"], row["n_u"] = len(method.q), len(getattr(method, "u", method.q))
+        row["inputs"] = [str(r) for r in inputs]
+        start = time.perf_counter()
+        model = Model(f"peer_{index}", parameters=parameters, sympy_model=record.system, inputs=inputs)
+        system = compile_model(model, methods=("rk4",), outputs=("rhs",), cache_dir=cache_dir)
+        row["compile_s"] = round(time.perf_counter() - start, 2)
+    except Exception as error:  # noqa: BLE001 - the refusal is the result
+        row["status"] = "refused"
+        row["reason"] = f"{type(error).__name__}: {str(error).splitlines()[0][:300]}"
+        return row
+    rng = random.Random(SEED + index)
+    errors = []
+    try:
+        full_M, full_F = method.mass_matrix_full, method.forcing_full
+        speeds = list(getattr(method, "u", [])) or [c.diff(t) for c in method.q]
+        for _ in range(3):
+            values = {p: rng.uniform(0.5, 2.0) for p in parameters}
+            state = [rng.uniform(-1, 1) for _ in range(len(method.q) + len(speeds))]
+            r = [rng.uniform(-1, 1) for _ in inputs]
+            at = dict(zip(list(method.q) + speeds, state)) | dict(zip(inputs, r)) | values | {t: 0.3}
+            at |= {c.diff(t): v for c, v in zip(method.q, state[len(method.q):])} if not getattr(method, "u", None) \
+                else {}
+            reference = np.array(full_M.xreplace(at).evalf().LUsolve(full_F.xreplace(at).evalf()).evalf(),
+                                 dtype=float).ravel()
+            table = (np.array([0.0, 1.0]), np.array([r, r])) if inputs else None
+            rhs = make_rhs(system, {p.name: v for p, v in values.items()},
+                           inputs=None if table is None else _constant(r))
+            ours = rhs(0.3, np.array(state))
+            errors.append(float(np.max(np.abs(ours - reference) / (1 + np.abs(reference)))))
+    except Exception as error:  # noqa: BLE001
+        row["status"] = "compare failed"
+        row["reason"] = f"{type(error).__name__}: {str(error).splitlines()[0][:300]}"
+        return row
+    row["max_error"] = max(errors)
+    row["status"] = "matches" if row["max_error"] < TOLERANCE else "differs"
+    return row
+
+
+def _constant(r):
+    from lagcodegen.run.inputs import InputTable
+    return InputTable(np.zeros(1), np.array([r], dtype=float))
+
+
+def survey(files=FILES, cache_dir=None) -> list:
+    rows = []
+    for i, record in enumerate(collect(files)):
+        try:
+            rows.append(check(record, i, cache_dir))
+        except Exception:  # noqa: BLE001
+            rows.append({"source": record.source, "kind": record.kind, "status": "crashed",
+                         "reason": traceback.format_exc().splitlines()[-1]})
+        print(f"{rows[-1]['status']:>14}  {record.source} ({record.kind})"
+              + (f": {rows[-1].get('reason', '')}" if rows[-1]["status"] != "matches" else
+                 f", max error {rows[-1]['max_error']:.1e}"), file=sys.stderr, flush=True)
+    return rows
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("files", nargs="*", default=FILES)
+    parser.add_argument("--json", metavar="FILE")
+    args = parser.parse_args()
+    rows = survey(tuple(args.files))
+    counts = {}
+    for row in rows:
+        counts[row["status"]] = counts.get(row["status"], 0) + 1
+    print(f"{len(rows)} systems: " + ", ".join(f"{v} {k}" for k, v in sorted(counts.items())))
+    if args.json:
+        with open(args.json, "w") as handle:
+            json.dump(rows, handle, indent=1)
+
+
+if __name__ == "__main__":
+    sp.init_printing(pretty_print=False)
+    main()
