@@ -194,10 +194,12 @@ def _immutable(matrix) -> sp.ImmutableMatrix:
 
 
 def assemble(model, coords, speeds, q, u, M, F, K, T, V, to_plain, inputs_checked=False,
-             positions=None) -> EquationsOfMotion:
+             positions=None, constraints=None) -> EquationsOfMotion:
     """The equations object; M and F are searched for undeclared symbols unless every input
     went through a ``to_plain`` that checks them (``inputs_checked``). ``positions`` maps Points
-    whose components in the model's frame are already known (in plain symbols)."""
+    whose components in the model's frame are already known (in plain symbols). ``constraints``
+    (holonomic, phi(q, t) = 0) default to the model's; a sympy model brings its own."""
+    constraints = tuple(model.constraints) if constraints is None else tuple(constraints)
     r = input_symbols(model.inputs)
     if not inputs_checked:
         check_declared([("mass matrix", M), ("forcing", F)], model.parameters, (), extra=q + u + r)
@@ -218,10 +220,11 @@ def assemble(model, coords, speeds, q, u, M, F, K, T, V, to_plain, inputs_checke
         points.append((name, sp.ImmutableMatrix(to_plain(pos, f"point {name!r}"))))
     route = ROUTE_TITLES.get(model.route, model.route)
     parameters, values, constrained = tuple(model.parameters), dict(model.parameter_values), {}
-    if model.constraints:
+    if constraints:
         if list(K) != list(u):
             raise ModelError("holonomic constraints need generalized speeds equal to the coordinate rates")
-        phi = sp.Matrix([to_plain(c, f"constraint {i}") for i, c in enumerate(model.constraints)])
+        phi = sp.Matrix([to_plain(c, f"constraint {i}") for i, c in enumerate(constraints)])
+        check_declared([(f"constraint {i}", c) for i, c in enumerate(phi)], model.parameters, (), extra=q + u + r)
         terms = holonomic_terms(phi, q, u, TIME)
         constrained = {"constraints": sp.ImmutableMatrix(phi), "constraint_jacobian": terms["A"],
                        "constraint_rate": terms["phi_t"], "constraint_bias": terms["gamma"]}

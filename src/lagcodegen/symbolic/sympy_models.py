@@ -19,12 +19,13 @@ def derive_from_sympy(model: Model):
     if isinstance(method, me.LagrangesMethod):
         # private: sympy 1.14 keeps the Lagrangian only in _L
         check_well_defined("the sympy model's Lagrangian", sp.sympify(method._L))
-        if len(method.lam_vec) > 0:
-            raise ModelError("LagrangesMethod with constraint multipliers is not supported yet: "
-                             "give the model in independent coordinates")
+        held = list(method._hol_coneqs)  # private: sympy 1.14 keeps the holonomic constraints only there
+        if len(method.coneqs) > len(held):
+            raise ModelError("LagrangesMethod with nonholonomic constraints (nonhol_coneqs) is not supported yet: "
+                             "velocity constraints come with issue 14")
         speeds = tuple(c.diff(TIME) for c in coords)
         kin_dynamic = sp.Matrix(speeds)
-        route = "sympy LagrangesMethod (Lagrange II)"
+        route = "sympy LagrangesMethod " + ("with holonomic constraints (Lagrange I)" if held else "(Lagrange II)")
     else:
         speeds = tuple(method.u)
         kindiff = method.kindiffdict()
@@ -34,7 +35,8 @@ def derive_from_sympy(model: Model):
     to_plain = make_substitution(coords, speeds, q, u, "sympy model", inputs=model.inputs)
     qdot_table = {} if isinstance(method, me.LagrangesMethod) else {
         c.diff(TIME): k for c, k in zip(coords, kin_dynamic)}
-    M = to_plain(method.mass_matrix.xreplace(qdot_table), "mass matrix")
+    n = len(coords)
+    M = to_plain(method.mass_matrix[:, :n].xreplace(qdot_table), "mass matrix")  # Lagrange I: without lambda's columns
     F = to_plain(method.forcing.xreplace(qdot_table), "forcing")
     K = to_plain(kin_dynamic, "kinematic equations")
     for what, matrix in (("mass matrix", M), ("forcing", F), ("kinematic equations", K)):
@@ -42,7 +44,8 @@ def derive_from_sympy(model: Model):
             check_well_defined(f"the sympy model's {what}, entry ({i}, {j})", entry)
     check_mass_matrix(M, coords, u)
     T, V = _energies(method, model, to_plain)
-    eom = assemble(model, coords, speeds, q, u, M, F, K, T, V, to_plain)
+    constraints = held if isinstance(method, me.LagrangesMethod) else ()
+    eom = assemble(model, coords, speeds, q, u, M, F, K, T, V, to_plain, constraints=constraints)
     return _with_route(eom, route)
 
 
