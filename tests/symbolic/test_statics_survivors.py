@@ -106,6 +106,11 @@ def test_a_single_mapping_is_one_guess(pendulum):
     assert _values(find_equilibria(pendulum, {}, guesses={th: 3.0})) == [[math.pi]]
 
 
+def test_integer_and_sympy_guesses(pendulum):
+    assert _values(find_equilibria(pendulum, {}, guesses=[[3], [1]])) == [[0.0], [math.pi]]
+    assert _values(find_equilibria(pendulum, {}, guesses=[{"theta": sp.Integer(3)}, {"theta": sp.pi / 8}])) == [[0.0], [math.pi]]
+
+
 def test_guesses_of_the_wrong_shape_are_refused():
     double = derive_equations(catalog.double_pendulum())
     for bad in ([[0.1, 0.2, 0.3]], [[0.1], [0.1, 0.2]], [0.1, 0.2, 0.3]):
@@ -251,6 +256,13 @@ def test_hanging_bob_multiplier_by_hand_with_heavy_mass():
         q, lam = constrained_equilibrium(_bob(mass=mass), {"x": 0.1, "y": -0.9})
         np.testing.assert_allclose(q, [0.0, -1.3], atol=1e-12)
         np.testing.assert_allclose(lam, [mass * 9.81 / 2.6], rtol=1e-12)
+
+
+@pytest.mark.parametrize("guess", [[0, -1], [sp.Integer(0), sp.Rational(-1)], {"x": 0, "y": -1}])
+def test_an_integer_or_sympy_guess_gives_a_float_solution(guess):
+    q, lam = constrained_equilibrium(_bob(), guess)
+    np.testing.assert_allclose(q, [0.0, -1.3], atol=1e-12)
+    np.testing.assert_allclose(lam, [2.0 * 9.81 / 2.6], rtol=1e-12)
 
 
 def test_coordinates_named_like_the_multipliers():
