@@ -156,6 +156,25 @@ def test_symbolic_search_without_forces_and_with_more_than_six_coordinates():
     assert find_equilibria(springs) == [dict.fromkeys(springs.q, 0)]
 
 
+def test_values_by_symbol_and_unknown_names_listed(pendulum):
+    # K0 = m g l = 8 with g = 8 given by its Symbol
+    assert linearize(pendulum, [0.0], {g: 8.0}).K0.tolist() == [[8.0]]
+    with pytest.raises(ValueError, match=r"unknown parameter 'gee' for model 'pendulum_s' \(parameters: m, g, l\)"):
+        linearize(pendulum, [0.0], {"gee": 8.0})
+    free = derive_equations(Model("no_parameters_s", [x], [], kinetic_energy=x.diff() ** 2 / 2))
+    with pytest.raises(ValueError, match=r"\(parameters: none\)$"):
+        find_equilibria(free, {"gee": 8.0})
+
+
+def test_a_force_that_is_nowhere_finite_is_not_taken_as_steady():
+    # F = sqrt(x - 5) cos(t) at rest: NaN at every sampled x in [0.5, 2], so the numeric check
+    # sees no value at all; that is no evidence of independence from t
+    model = derive_equations(Model("nowhere_finite_s", [x], [], kinetic_energy=x.diff() ** 2 / 2,
+                                   generalized_forces={x: sp.sqrt(x - 5) * sp.cos(t)}))
+    with pytest.raises(ValueError, match=r"F\[0\] \(coordinate x\).*depends on t"):
+        find_equilibria(model)
+
+
 def test_missing_parameters_name_the_quantity_being_built():
     model = derive_equations(Model("msd_s", [x], [m, c, k], kinetic_energy=m * x.diff() ** 2 / 2,
                                    potential_energy=k * x ** 2 / 2, dissipation=c * x.diff() ** 2 / 2))
@@ -190,6 +209,7 @@ def test_linearize_freezes_an_explicit_time_at_zero():
     model = derive_equations(Model("growing_mass_s", [x], [m, k], kinetic_energy=m * (2 + sp.cos(t)) * x.diff() ** 2 / 2,
                                    potential_energy=k * x ** 2 / 2))
     lin = linearize(model, [0])
+    assert lin.q == tuple(model.q) and lin.q0 == (0,)
     assert (lin.M0, lin.C0, lin.K0) == (sp.Matrix([[3 * m]]), sp.Matrix([[0]]), sp.Matrix([[k]]))
 
 
@@ -232,6 +252,18 @@ def test_round_off_asymmetry_is_accepted():
     # relative asymmetry 1e-13 at entries of 1e6 (the symmetric part is used)
     lin = _linear([[2e6, 1e6 + 2e-7], [1e6, 2e6]])
     np.testing.assert_allclose(lin.eigenvalues(), [1e6, 3e6], rtol=1e-12)
+
+
+def test_mode_shapes_are_mass_normalized_with_a_positive_largest_entry():
+    # the documented normalization, checked on seeded random M0, K0 (symmetric positive definite)
+    rng = np.random.default_rng(3)
+    for n in (2, 3, 4, 5):
+        for _ in range(5):
+            B, C = rng.normal(size=(n, n)), rng.normal(size=(n, n))
+            M0, K0 = B @ B.T + n * np.eye(n), C @ C.T + np.eye(n)
+            V = _linear(K0, M0).mode_shapes()
+            np.testing.assert_allclose(V.T @ M0 @ V, np.eye(n), atol=1e-12)
+            assert np.all(V[np.argmax(np.abs(V), axis=0), np.arange(n)] > 0)
 
 
 def test_frequencies_name_the_matrix_that_still_has_symbols():
