@@ -176,7 +176,10 @@ def _solve_numeric(eom: EquationsOfMotion, G: sp.Matrix, vals: dict, guesses: An
     angles = angle_like(eom)
     starts = _starting_points(eom, guesses, angles)
     with np.errstate(all="ignore"):
-        scale = max([np.max(np.abs(r)) for r in map(fun, starts) if np.all(np.isfinite(r))], default=1.0)
+        # size of the terms of F at the starts, |F| and |dF/dq| |q|: a start that is already a
+        # root has |F| at round-off level, which alone would make the tolerance unreachable
+        sizes = (max(np.max(np.abs(fun(x0))), np.max(np.abs(jac(x0)) @ np.abs(x0))) for x0 in starts)
+        scale = max([s for s in sizes if np.isfinite(s)], default=1.0)
         tol = 1e-9 * max(scale, 1e-12)
         roots = []
         for x0 in starts:
