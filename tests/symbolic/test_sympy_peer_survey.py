@@ -12,13 +12,17 @@ import sys
 from pathlib import Path
 
 import pytest
+import sympy as sp
+import sympy.physics.mechanics as me
+
+from lagcodegen import Model, ModelError, derive_equations
 
 TOOL = Path(__file__).resolve().parents[2] / "tools" / "sympy_peer_survey.py"
 FILES = ("test_kane", "test_kane2", "test_kane4", "test_kane5", "test_lagrange", "test_lagrange2",
          "test_jointsmethod", "test_linearize", "test_models")
 #: what lagcodegen refuses today, each for a stated reason (issue 14 lifts the first five)
 REASONS = ("has dependent coordinates", "has dependent speeds", "has auxiliary speeds",
-           "independent speeds (", "LagrangesMethod with constraint multipliers",
+           "independent speeds (", "nonholonomic constraints (nonhol_coneqs)",
            "has no inertia")  # the last: sympy's own mass matrix is singular (test_issue_24887)
 
 
@@ -39,7 +43,7 @@ def test_every_system_matches_or_is_refused_for_a_stated_reason(rows):
         else:
             assert row["status"] == "matches", row
     matching = [row for row in rows if row["status"] == "matches"]
-    assert len(matching) >= 37  # 37 of 51 on sympy 1.14 (2026-11-25)
+    assert len(matching) >= 40  # 40 of 51 on sympy 1.14 (2026-11-25)
 
 
 def test_driven_and_joints_systems_match(rows):
@@ -50,3 +54,42 @@ def test_driven_and_joints_systems_match(rows):
     assert len(driven) >= 7 and all(row["status"] == "matches" for row in driven), driven
     joints = [row for row in rows if row["kind"] == "JointsMethod"]
     assert len(joints) >= 6 and all(row["status"] == "matches" for row in joints), joints
+
+
+def nonminimal_pendulum(constraint: str):
+    """sympy's test_nonminimal_pendulum: a particle at (q1, q2) on q1^2 + q2^2 = L^2 (``"holonomic"``),
+    or sliding with q1' = q2' (``"nonholonomic"``), gravity m g along x."""
+    q1, q2 = me.dynamicsymbols("q1:3")
+    L, m, g = sp.symbols("L m g", positive=True)
+    constraints = {"hol_coneqs": [q1 ** 2 + q2 ** 2 - L ** 2]} if constraint == "holonomic" else \
+        {"nonhol_coneqs": [q1.diff() - q2.diff()]}
+    N, O = me.ReferenceFrame("N"), me.Point("O")
+    O.set_vel(N, 0)
+    P = O.locatenew("P", q1 * N.x + q2 * N.y)
+    P.set_vel(N, P.pos_from(O).dt(N))
+    method = me.LagrangesMethod(me.Lagrangian(N, me.Particle("p", P, m)), [q1, q2], forcelist=[(P, m * g * N.x)],
+                                frame=N, **constraints)
+    method.form_lagranges_equations()
+    return method, (q1, q2), (L, m, g)
+
+
+def test_lagranges_method_with_hol_coneqs_is_lagrange_i():
+    """Second route: the same pendulum stated with Model(constraints=...) by its energies."""
+    method, (q1, q2), (L, m, g) = nonminimal_pendulum("holonomic")
+    ours = derive_equations(Model("sympy_pendulum", parameters=[L, m, g], sympy_model=method))
+    t = me.dynamicsymbols._t
+    energies = derive_equations(Model("pendulum", [q1, q2], [L, m, g],
+                                      kinetic_energy=m * (q1.diff(t) ** 2 + q2.diff(t) ** 2) / 2,
+                                      potential_energy=-m * g * q1, constraints=[q1 ** 2 + q2 ** 2 - L ** 2]))
+    assert ours.m == 1 and "Lagrange I" in ours.route
+    for name in ("mass_matrix", "forcing", "constraint_jacobian", "constraint_bias"):
+        assert sp.simplify(getattr(ours, name) - getattr(energies, name)) == sp.zeros(*getattr(ours, name).shape)
+
+
+def test_lagranges_method_refusals_name_the_culprit():
+    method, _, (L, m, g) = nonminimal_pendulum("holonomic")
+    with pytest.raises(ModelError, match="constraint 0 uses symbols not declared as parameters: L"):
+        derive_equations(Model("undeclared", parameters=[m, g], sympy_model=method))
+    sliding, _, (L, m, g) = nonminimal_pendulum("nonholonomic")
+    with pytest.raises(ModelError, match="nonholonomic constraints"):
+        derive_equations(Model("sliding", parameters=[m, g], sympy_model=sliding))
