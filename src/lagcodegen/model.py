@@ -106,6 +106,12 @@ class Model:
         the forcing F; never the kinetic energy, masses, inertias, positions or constraints (their
         rates would enter the equations, and the mass matrix must not depend on them). In a sympy
         model every specified function of t that is not a coordinate or speed must be listed here.
+    motion_constraints : sequence of Expr, optional
+        Constraints on the velocities, ``a(q, t) . qd + b(q, t) = 0`` (linear in the coordinate
+        rates; rolling without slipping in 3D, a knife edge), energies and bodies routes, with
+        multipliers as for the holonomic ones (the first kind extended to velocity constraints):
+        ``M ud + A^T lambda = F`` with A stacking dphi/dq and the rows a; their multipliers are the
+        constraint forces, Baumgarte's alpha and the projection act on them too.
     measurements : mapping name -> Expr, optional
         Output expressions y = h(q, qd, r, t) (sensor readings, a spring force, a contact
         point's coordinate): compiled into one C function ``<prefix>_measurements`` and recorded
@@ -143,11 +149,12 @@ class Model:
     constraints: Sequence[Any] = ()
     inputs: Sequence[Any] = ()
     measurements: Mapping[str, Any] = field(default_factory=dict)
+    motion_constraints: Sequence[Any] = ()
 
     def __post_init__(self) -> None:
         self._check_name()
         set_ = lambda attr, value: object.__setattr__(self, attr, value)  # noqa: E731 (frozen)
-        for attr in ("coordinates", "parameters", "bodies", "loads", "constraints", "inputs"):
+        for attr in ("coordinates", "parameters", "bodies", "loads", "constraints", "inputs", "motion_constraints"):
             if not isinstance(getattr(self, attr), (list, tuple)):
                 raise ModelError(f"{attr} must be a list or tuple, got {type(getattr(self, attr)).__name__}")
         set_("parameters", tuple(self.parameters))
@@ -169,6 +176,8 @@ class Model:
         set_("parameter_values", self._checked_values())
         set_("constraints", tuple(_as_expr(c, f"constraint {i}") for i, c in enumerate(self.constraints)))
         set_("measurements", self._checked_measurements())
+        set_("motion_constraints", tuple(_as_expr(c, f"motion constraint {i}")
+                                         for i, c in enumerate(self.motion_constraints)))
         self._check_route()
         self._check_connected()
         self._check_symbols()
@@ -333,6 +342,12 @@ class Model:
             if not _dynamic_functions(phi) & set(self.coordinates):
                 raise ModelError(f"constraint {i} ({phi}) involves no coordinate")
             exprs.append((f"constraint {i}", phi))
+        if self.motion_constraints and self.sympy_model is not None:
+            raise ModelError("motion_constraints are for the energies and bodies routes; a sympy model brings its own")
+        for i, c in enumerate(self.motion_constraints):
+            if not _dynamic_functions(c) & set(self.coordinates):
+                raise ModelError(f"motion constraint {i} ({c}) involves no coordinate")
+            exprs.append((f"motion constraint {i}", c))
         speeds = sorted(self.potential_energy.atoms(sp.Derivative), key=str)
         if speeds:
             raise ModelError(f"potential_energy contains the speed {speeds[0]}: V must be a function of the "

@@ -22,7 +22,7 @@ from ..model import (
     input_name,
 )
 from .grouping import components
-from .holonomic import BAUMGARTE_ALPHA, BAUMGARTE_BETA, holonomic_terms
+from .holonomic import BAUMGARTE_ALPHA, BAUMGARTE_BETA, holonomic_terms, motion_terms
 
 ROUTE_TITLES = {
     ROUTE_ENERGIES: "Lagrange II (energies)",
@@ -60,6 +60,10 @@ class EquationsOfMotion:
         Plain symbols of the model's inputs r; they appear in F (and K), never in M.
     measurements : tuple of (str, Expr)
         Output expressions y = h(q, u, r, t) by name.
+    n_holonomic : int
+        The first rows of the constraint terms are holonomic (phi(q, t) = 0); the other m -
+        n_holonomic are velocity constraints A u + b = 0, whose phi rows are 0 and whose
+        ``constraint_rate`` rows hold b.
     """
 
     name: str
@@ -83,6 +87,7 @@ class EquationsOfMotion:
     constraint_bias: sp.ImmutableMatrix = sp.ImmutableMatrix(0, 1, [])
     inputs: tuple = ()
     measurements: tuple = ()
+    n_holonomic: int = 0
 
     @property
     def m(self) -> int:
@@ -194,12 +199,14 @@ def _immutable(matrix) -> sp.ImmutableMatrix:
 
 
 def assemble(model, coords, speeds, q, u, M, F, K, T, V, to_plain, inputs_checked=False,
-             positions=None, constraints=None) -> EquationsOfMotion:
+             positions=None, constraints=None, motion=None) -> EquationsOfMotion:
     """The equations object; M and F are searched for undeclared symbols unless every input
     went through a ``to_plain`` that checks them (``inputs_checked``). ``positions`` maps Points
     whose components in the model's frame are already known (in plain symbols). ``constraints``
-    (holonomic, phi(q, t) = 0) default to the model's; a sympy model brings its own."""
+    (holonomic, phi(q, t) = 0) and ``motion`` (velocity constraints, linear in the coordinate
+    rates) default to the model's; a sympy model brings its own."""
     constraints = tuple(model.constraints) if constraints is None else tuple(constraints)
+    motion = tuple(getattr(model, "motion_constraints", ())) if motion is None else tuple(motion)
     r = input_symbols(model.inputs)
     if not inputs_checked:
         check_declared([("mass matrix", M), ("forcing", F)], model.parameters, (), extra=q + u + r)
@@ -220,17 +227,36 @@ def assemble(model, coords, speeds, q, u, M, F, K, T, V, to_plain, inputs_checke
         points.append((name, sp.ImmutableMatrix(to_plain(pos, f"point {name!r}"))))
     route = ROUTE_TITLES.get(model.route, model.route)
     parameters, values, constrained = tuple(model.parameters), dict(model.parameter_values), {}
-    if constraints:
+    if constraints or motion:
         if list(K) != list(u):
-            raise ModelError("holonomic constraints need generalized speeds equal to the coordinate rates")
+            raise ModelError("constraints need generalized speeds equal to the coordinate rates")
         phi = sp.Matrix([to_plain(c, f"constraint {i}") for i, c in enumerate(constraints)])
         check_declared([(f"constraint {i}", c) for i, c in enumerate(phi)], model.parameters, (), extra=q + u + r)
-        terms = holonomic_terms(phi, q, u, TIME)
-        constrained = {"constraints": sp.ImmutableMatrix(phi), "constraint_jacobian": terms["A"],
-                       "constraint_rate": terms["phi_t"], "constraint_bias": terms["gamma"]}
+        w = sp.Matrix([to_plain(c, f"motion constraint {i}") for i, c in enumerate(motion)])
+        check_declared([(f"motion constraint {i}", c) for i, c in enumerate(w)], model.parameters, (),
+                       extra=q + u + r)
+        for i, wi in enumerate(w):
+            nonlinear = [s for s in u if wi.diff(s).has(*u)]
+            if nonlinear:
+                raise ModelError(f"motion constraint {i} ({motion[i]}) is not linear in the speeds (in "
+                                 f"{speeds[list(u).index(nonlinear[0])]}); velocity constraints must read "
+                                 "a(q, t) . qd + b(q, t)")
+            if not any(wi.diff(s) != 0 for s in u):
+                raise ModelError(f"motion constraint {i} ({motion[i]}) involves no speed: a constraint on the "
+                                 "positions belongs in constraints=")
+        blocks = []
+        if phi.rows:
+            blocks.append(dict(holonomic_terms(phi, q, u, TIME), phi=phi))
+        if w.rows:
+            blocks.append(motion_terms(w, q, u, TIME))
+        stack = lambda key: sp.ImmutableMatrix(sp.Matrix.vstack(*[sp.Matrix(b[key]) for b in blocks]))  # noqa: E731
+        constrained = {"constraints": stack("phi"), "constraint_jacobian": stack("A"),
+                       "constraint_rate": stack("phi_t"), "constraint_bias": stack("gamma"),
+                       "n_holonomic": phi.rows}
         parameters += (BAUMGARTE_ALPHA, BAUMGARTE_BETA)
         values.update({BAUMGARTE_ALPHA: 0.0, BAUMGARTE_BETA: 0.0})
-        route += " with holonomic constraints (Lagrange I)"
+        kinds = " and ".join(k for k, rows in (("holonomic", phi.rows), ("velocity", w.rows)) if rows)
+        route += f" with {kinds} constraints (Lagrange I)"
     return EquationsOfMotion(
         name=model.name, route=route, t=TIME, coordinates=tuple(coords), speeds=tuple(speeds),
         q=tuple(q), u=tuple(u), parameters=parameters, parameter_values=values,

@@ -20,12 +20,10 @@ def derive_from_sympy(model: Model):
         # private: sympy 1.14 keeps the Lagrangian only in _L
         check_well_defined("the sympy model's Lagrangian", sp.sympify(method._L))
         held = list(method._hol_coneqs)  # private: sympy 1.14 keeps the holonomic constraints only there
-        if len(method.coneqs) > len(held):
-            raise ModelError("LagrangesMethod with nonholonomic constraints (nonhol_coneqs) is not supported yet: "
-                             "velocity constraints come with issue 14")
+        motion = list(method.coneqs)[len(held):]  # coneqs = (d/dt hol_coneqs, nonhol_coneqs)
         speeds = tuple(c.diff(TIME) for c in coords)
         kin_dynamic = sp.Matrix(speeds)
-        route = "sympy LagrangesMethod " + ("with holonomic constraints (Lagrange I)" if held else "(Lagrange II)")
+        route = "sympy LagrangesMethod"
     else:
         speeds = tuple(method.u)
         kindiff = method.kindiffdict()
@@ -44,8 +42,12 @@ def derive_from_sympy(model: Model):
             check_well_defined(f"the sympy model's {what}, entry ({i}, {j})", entry)
     check_mass_matrix(M, coords, u)
     T, V = _energies(method, model, to_plain)
-    constraints = held if isinstance(method, me.LagrangesMethod) else ()
-    eom = assemble(model, coords, speeds, q, u, M, F, K, T, V, to_plain, constraints=constraints)
+    constraints, motion = (held, motion) if isinstance(method, me.LagrangesMethod) else ((), ())
+    eom = assemble(model, coords, speeds, q, u, M, F, K, T, V, to_plain, constraints=constraints, motion=motion)
+    if eom.m:  # assemble's " with ... constraints (Lagrange I)"
+        route += eom.route[eom.route.index(" with "):]
+    elif isinstance(method, me.LagrangesMethod):
+        route += " (Lagrange II)"
     return _with_route(eom, route)
 
 
