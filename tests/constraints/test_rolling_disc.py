@@ -100,3 +100,34 @@ def test_below_the_critical_speed_the_disc_falls(system):
 def test_the_eigenvalues_vanish_at_the_critical_speed():
     """sympy's own assertion, kept here as the reference this file relies on."""
     assert np.abs(np.linalg.eigvals(sympy_upright_a(CRITICAL))).max() < 1e-6
+
+
+def test_consistent_initial_speeds_and_a_named_violation():
+    """consistent_state completes the speeds the rolling constraints fix (x' = r cos(psi) phi',
+    y' = r sin(psi) phi', by hand) and names each constraint a held set violates."""
+    from lagcodegen.statics.consistent import consistent_state
+
+    eom = derive_equations(rolling_disc())
+    q0, u0 = consistent_state(eom, {"x": 0, "y": 0, "psi": 0.3, "theta": 0.1, "phi": 0},
+                              {"phi": 2.0, "theta": 0.01, "psi": 0.0})
+    np.testing.assert_allclose(u0, [2 * np.cos(0.3), 2 * np.sin(0.3), 0.0, 0.01, 2.0], atol=1e-14)
+    with pytest.raises(ValueError, match=r"velocity constraint 0: .* has residual -1.91067; velocity constraint 1"):
+        consistent_state(eom, {"x": 0, "y": 0, "psi": 0.3, "theta": 0.1, "phi": 0}, {"phi": 2.0, "x": 0.0, "y": 0.0})
+
+
+def test_dependent_velocity_constraints_stop_with_a_status(tmp_path):
+    """The same rolling constraint twice: A loses rank, the run stops at once with SINGULAR_CONSTRAINTS."""
+    import warnings
+
+    from lagcodegen.status import Status
+
+    model = rolling_disc()
+    doubled = Model("rolling_disc_doubled", model.coordinates, model.parameters, bodies=model.bodies,
+                    gravity=model.gravity, frame=model.frame, origin=model.origin,
+                    motion_constraints=list(model.motion_constraints) + [2 * model.motion_constraints[0]],
+                    parameter_values={"m": 1.0, "r": 1.0, "g": 1.0})
+    system = compile_model(doubled, methods=("rk4",), cache_dir=tmp_path)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        run = simulate(system, [0, 0, 0, 0, 0, 1.0, 0, 0, 0, 1.0], t_end=1.0, h=1e-3)
+    assert run.status == Status.SINGULAR_CONSTRAINTS and run.failed_step == 1
