@@ -113,3 +113,18 @@ def test_bad_motion_constraints_are_named(blade, match):
                   "acceleration": x.diff(t, 2) - y.diff(t), "undeclared": sp.Symbol("k") * x.diff(t)}[blade]
     with pytest.raises(ModelError, match=match):
         derive_equations(Model("bad_blade", [x, y, theta], [m], kinetic_energy=T, motion_constraints=[constraint]))
+
+
+@pytest.mark.parametrize("speed", [0.7, -0.7])
+def test_straight_sliding_is_stable_forward_and_unstable_backward(speed):
+    """About v = V, w = 0 the closed-form equations give w' = -(m a V / J) w: one eigenvalue
+    -m a V / J in the 5 allowed directions, the rest 0 (by hand)."""
+    from lagcodegen.statics.state_space import linearize_state
+
+    linear = linearize_state(derive_equations(sleigh()), [0, 0, 0, speed, 0, 0], values={})
+    m, I, a = VALUES["m"], VALUES["I"], VALUES["a"]
+    eigenvalues = linear.eigenvalues()
+    assert linear.basis.shape == (6, 5)
+    np.testing.assert_allclose(eigenvalues[np.abs(eigenvalues) > 1e-9], [-m * a * speed / (I + m * a ** 2)], rtol=1e-12)
+    with pytest.raises(ValueError, match="numeric; pass values="):
+        linearize_state(derive_equations(sleigh()), [0, 0, 0, speed, 0, 0])

@@ -131,3 +131,26 @@ def test_dependent_velocity_constraints_stop_with_a_status(tmp_path):
         warnings.simplefilter("ignore", RuntimeWarning)
         run = simulate(system, [0, 0, 0, 0, 0, 1.0, 0, 0, 0, 1.0], t_end=1.0, h=1e-3)
     assert run.status == Status.SINGULAR_CONSTRAINTS and run.failed_step == 1
+
+
+@pytest.mark.parametrize("factor", [1.5, 0.5])
+def test_linearization_about_upright_rolling_matches_sympys(factor):
+    """linearize_state reduces to the 8 directions the rolling constraints allow; its nonzero
+    eigenvalues are those of sympy's A_sol (the zeros form Jordan blocks: compared by size only)."""
+    from lagcodegen.statics.state_space import linearize_state
+
+    spin = factor * CRITICAL
+    linear = linearize_state(derive_equations(rolling_disc()), [0, 0, 0, 0, 0, spin, 0, 0, 0, spin], values={})
+    assert linear.basis.shape == (10, 8)
+    ours = linear.eigenvalues()
+    theirs = np.linalg.eigvals(sympy_upright_a(spin))
+    significant = lambda lam: np.sort_complex(lam[np.abs(lam) > 1e-3])  # noqa: E731
+    np.testing.assert_allclose(significant(ours), significant(theirs), atol=1e-8)
+    assert np.abs(ours[np.abs(ours) <= 1e-3]).max() < 1e-5 and (np.abs(ours) <= 1e-3).sum() == 6
+
+
+def test_linearization_refuses_an_inconsistent_state():
+    from lagcodegen.statics.state_space import linearize_state
+
+    with pytest.raises(ValueError, match=r"violates constraint row 0 .*\(consistent_state\)"):
+        linearize_state(derive_equations(rolling_disc()), [0, 0, 0, 0, 0, 0.0, 0, 0, 0, 1.0], values={})

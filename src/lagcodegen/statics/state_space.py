@@ -41,6 +41,11 @@ class StateSpace:
     C, D : like A and B, (n_y, 2n) and (n_y, n_r)
         ``dy = C dx + D dr`` for the model's measurements y = h(q, u, r, t) (0 rows without).
     measurements : tuple of str, (n_y,)
+    basis, A_reduced, B_reduced : ndarray or None
+        Constrained models: an orthonormal basis N (2n, k) of the states the constraints allow
+        at x0 (the tangent space of phi = 0, A u + b = 0), and ``A_reduced = N^T A N``,
+        ``B_reduced = N^T B``: the linearization in those k independent directions, whose
+        eigenvalues `eigenvalues` reports (the constraint directions only carry zeros).
     """
 
     states: tuple
@@ -53,10 +58,16 @@ class StateSpace:
     C: Any = None
     D: Any = None
     measurements: tuple = ()
+    basis: Any = None
+    A_reduced: Any = None
+    B_reduced: Any = None
 
     def eigenvalues(self) -> np.ndarray:
         """Eigenvalues of A (complex), sorted by modulus (the natural frequency), then imaginary part."""
-        A = np.asarray(self.A, dtype=float) if isinstance(self.A, np.ndarray) else _numeric(self.A, "A")
+        if self.A_reduced is not None:
+            A = np.asarray(self.A_reduced, dtype=float)
+        else:
+            A = np.asarray(self.A, dtype=float) if isinstance(self.A, np.ndarray) else _numeric(self.A, "A")
         values = np.linalg.eigvals(A)
         return values[np.lexsort((values.imag, np.round(np.abs(values), 12)))]
 
@@ -116,9 +127,9 @@ def linearize_state(eom: EquationsOfMotion, x0: Any, r0: Any = None, values: Map
     [  0],
     [1/m]]))
     """
-    if eom.m:
-        raise ValueError(f"model {eom.name!r} has holonomic constraints: linearize_state covers models in "
-                         "independent coordinates")
+    if eom.m and values is None:
+        raise ValueError(f"model {eom.name!r} has constraints: its linearization is numeric; pass values= "
+                         "({} for the defaults)")
     states = tuple(eom.q) + tuple(eom.u)
     point = _state_point(eom, x0)
     if eom.inputs and r0 is None:
@@ -153,6 +164,8 @@ def linearize_state(eom: EquationsOfMotion, x0: Any, r0: Any = None, values: Map
     vals = resolve_values(eom, values)
     number = lambda X, what: np.array(  # noqa: E731
         substitute_values(eom, X.xreplace(at), vals, f"linearization: {what}").evalf(), dtype=float)
+    if eom.m:
+        return _constrained(eom, states, point, held, at, vals, number, parts, t0)
     here = {name: number(matrix, name) for name, matrix in parts.items()}
     M_here = here["M"]
     if not np.all(np.isfinite(M_here)) or np.linalg.matrix_rank(M_here) < eom.n:
@@ -169,6 +182,47 @@ def linearize_state(eom: EquationsOfMotion, x0: Any, r0: Any = None, values: Map
     return StateSpace(states, tuple(r), tuple(map(as_float, point)), tuple(map(as_float, held)),
                       as_float(t0), A, B, here["dh/dx"].reshape(len(names), 2 * eom.n),
                       here["dh/dr"].reshape(len(names), len(r)), names)
+
+
+def _constrained(eom, states, point, held, at, vals, number, parts, t0) -> StateSpace:
+    """Lagrange I about (x0, r0): z = (ud, lambda) solves K z = rhs with K = [[M, A^T], [A, 0]],
+    rhs = (F, gamma), so dz/dv = K^-1 (drhs/dv - dK/dv z) for every state and input v; then the
+    same in the directions the constraints allow (module docstring of `StateSpace`)."""
+    from scipy.linalg import null_space
+
+    n, m, r = eom.n, eom.m, list(eom.inputs)
+    M, A = sp.Matrix(eom.mass_matrix), sp.Matrix(eom.constraint_jacobian)
+    K = sp.Matrix(sp.BlockMatrix([[M, A.T], [A, sp.zeros(m, m)]]))
+    rhs = sp.Matrix.vstack(sp.Matrix(eom.forcing), sp.Matrix(eom.constraint_bias))
+    K_here = number(K, "constraint matrix [[M, A^T], [A, 0]]")
+    if not np.all(np.isfinite(K_here)) or np.linalg.matrix_rank(K_here) < n + m:
+        raise ValueError(f"[[M, A^T], [A, 0]] of model {eom.name!r} is singular at x0 = {list(point)}: a singular mass "
+                         "matrix or constraints that lost rank; no linearization")
+    z = np.linalg.solve(K_here, number(rhs, "forcing and gamma").ravel())
+    columns = []
+    for v in list(states) + r:
+        dK, drhs = number(K.diff(v), f"d/d{v} of [[M, A^T], [A, 0]]"), number(rhs.diff(v), f"d/d{v} of (F, gamma)")
+        columns.append(np.linalg.solve(K_here, drhs.ravel() - dK @ z)[:n])
+    lower = np.column_stack(columns) if columns else np.zeros((n, 0))
+    A_full = np.vstack([number(parts["dK/dx"], "dK/dx"), lower[:, :2 * n]])
+    B_full = np.vstack([number(parts["dK/dr"], "dK/dr") if r else np.zeros((n, 0)), lower[:, 2 * n:]])
+    held_rows = eom.n_holonomic
+    c = sp.Matrix.vstack(sp.Matrix(eom.constraints)[:held_rows, :],
+                         A * sp.Matrix(eom.u) + sp.Matrix(eom.constraint_rate))
+    residual = number(c, "constraints").ravel()
+    if np.abs(residual).max(initial=0.0) > 1e-8 * (1 + np.abs(point_values := number(sp.Matrix(states), "x0")).max()):
+        worst = int(np.argmax(np.abs(residual)))
+        raise ValueError(f"x0 = {point_values.ravel().tolist()} violates constraint row {worst} of model {eom.name!r} "
+                         f"(residual {residual[worst]:.3g}): linearize about a consistent state (consistent_state)")
+    basis = null_space(number(c.jacobian(states), "constraint Jacobian"))
+    names = tuple(name for name, _ in eom.measurements)
+    numbers = {p: sp.Float(v) for p, v in vals.items()}
+    as_float = lambda v: float(sp.sympify(v).xreplace(numbers))  # noqa: E731
+    C = number(parts["dh/dx"], "dh/dx").reshape(len(names), 2 * n)
+    D = number(parts["dh/dr"], "dh/dr").reshape(len(names), len(r))
+    return StateSpace(states, tuple(r), tuple(map(as_float, point)), tuple(map(as_float, held)), as_float(t0),
+                      A_full, B_full, C, D, names, basis=basis, A_reduced=basis.T @ A_full @ basis,
+                      B_reduced=basis.T @ B_full)
 
 
 def _state_point(eom: EquationsOfMotion, x0: Any) -> tuple:
