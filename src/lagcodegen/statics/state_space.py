@@ -140,14 +140,16 @@ def linearize_state(eom: EquationsOfMotion, x0: Any, r0: Any = None, values: Map
     at = dict(zip(states, point)) | dict(zip(eom.inputs, held)) | {eom.t: sp.sympify(t0)}
     M, F, K = (sp.Matrix(X) for X in (eom.mass_matrix, eom.forcing, eom.kinematics))
     r = list(eom.inputs)
-    parts = {"M": M, "F": F, "K": K, "dF/dq": F.jacobian(eom.q), "dF/du": F.jacobian(eom.u),
-             "dK/dx": K.jacobian(states), "dF/dr": F.jacobian(r) if r else sp.zeros(eom.n, 0),
+    parts = {"M": M, "F": F, "K": K, "dK/dx": K.jacobian(states),
              "dK/dr": K.jacobian(r) if r else sp.zeros(eom.n, 0)}
+    if not eom.m:  # a constrained model differentiates its whole Lagrange I solve instead (`_constrained`)
+        parts |= {"dF/dq": F.jacobian(eom.q), "dF/du": F.jacobian(eom.u),
+                  "dF/dr": F.jacobian(r) if r else sp.zeros(eom.n, 0)}
     Y = sp.Matrix([y for _, y in eom.measurements]) if eom.measurements else sp.zeros(0, 1)
     parts["dh/dx"] = Y.jacobian(states) if eom.measurements else sp.zeros(0, 2 * eom.n)
     parts["dh/dr"] = Y.jacobian(r) if eom.measurements and r else sp.zeros(len(eom.measurements), len(r))
     names = tuple(name for name, _ in eom.measurements)
-    dM = [M.diff(qc) for qc in eom.q]
+    dM = [] if eom.m else [M.diff(qc) for qc in eom.q]
     for name, matrix in parts.items():
         _check_smooth(eom, matrix, name)
     if values is None:
@@ -200,8 +202,21 @@ def _constrained(eom, states, point, held, at, vals, number, parts, t0) -> State
                          "matrix or constraints that lost rank; no linearization")
     z = np.linalg.solve(K_here, number(rhs, "forcing and gamma").ravel())
     columns = []
-    for v in list(states) + r:
-        dK, drhs = number(K.diff(v), f"d/d{v} of [[M, A^T], [A, 0]]"), number(rhs.diff(v), f"d/d{v} of (F, gamma)")
+    in_K, in_rhs = K.free_symbols, rhs.free_symbols
+    variables = list(states) + r
+    fixed = {v: sp.sympify(at[v]) for v in variables} | {eom.t: sp.sympify(t0)}
+    fixed |= {p: sp.Float(value) for p, value in vals.items()}
+
+    def partial(X: sp.Matrix, v, what: str) -> np.ndarray:
+        """dX/dv at the point, exactly: every other variable and parameter is set first, so the
+        derivative is taken of a function of v alone (whole-tree derivatives took minutes for the
+        Whipple bicycle)."""
+        alone = X.xreplace({w: value for w, value in fixed.items() if w != v})
+        return number(_smooth(eom, alone.diff(v), what), what)
+
+    for v in variables:  # K holds no speeds or inputs: most of its derivatives are zero
+        dK = partial(K, v, f"d[[M, A^T], [A, 0]]/d{v}") if v in in_K else np.zeros(K.shape)
+        drhs = partial(rhs, v, f"d(F, gamma)/d{v}") if v in in_rhs else np.zeros((n + m, 1))
         columns.append(np.linalg.solve(K_here, drhs.ravel() - dK @ z)[:n])
     lower = np.column_stack(columns) if columns else np.zeros((n, 0))
     A_full = np.vstack([number(parts["dK/dx"], "dK/dx"), lower[:, :2 * n]])
@@ -223,6 +238,11 @@ def _constrained(eom, states, point, held, at, vals, number, parts, t0) -> State
     return StateSpace(states, tuple(r), tuple(map(as_float, point)), tuple(map(as_float, held)), as_float(t0),
                       A_full, B_full, C, D, names, basis=basis, A_reduced=basis.T @ A_full @ basis,
                       B_reduced=basis.T @ B_full)
+
+
+def _smooth(eom: EquationsOfMotion, matrix: sp.Matrix, what: str) -> sp.Matrix:
+    _check_smooth(eom, matrix, what)
+    return matrix
 
 
 def _state_point(eom: EquationsOfMotion, x0: Any) -> tuple:
