@@ -180,3 +180,14 @@ def compiled_example(kernel_cache_dir, example_eom):
         return memo[key]
 
     return get
+
+
+@pytest.fixture(scope="session")
+def cart_pole_example():
+    """examples/cart_pole_lqr.py as a module: its cart-pole model, gains and C emitter."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("cart_pole_lqr", REPO_ROOT / "examples" / "cart_pole_lqr.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module

@@ -5,7 +5,6 @@ clang, balance the pole from a 0.2 rad tilt, and agree with the same loop run in
 """
 from __future__ import annotations
 
-import importlib.util
 import re
 import subprocess
 from pathlib import Path
@@ -18,17 +17,13 @@ from lagcodegen.run.simulate import simulate, step_jacobians
 
 pytestmark = pytest.mark.compiler
 
-EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "cart_pole_lqr.py"
 WARNINGS = ["-std=c99", "-Wall", "-Wextra", "-Wpedantic", "-Werror"]
 CORTEX_M4F = ["-mcpu=cortex-m4", "-mthumb", "-mfloat-abi=hard", "-mfpu=fpv4-sp-d16", "-O2", "-c"]
 
 
 @pytest.fixture(scope="module")
-def example():
-    spec = importlib.util.spec_from_file_location("cart_pole_lqr", EXAMPLE)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+def example(cart_pole_example):
+    return cart_pole_example
 
 
 @pytest.fixture(scope="module")

@@ -10,9 +10,6 @@ Independent references:
 """
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
 import numpy as np
 import pytest
 import sympy as sp
@@ -25,15 +22,9 @@ from lagcodegen.run.simulate import simulate, step_jacobians
 from lagcodegen.statics.state_space import linearize_state
 from lagcodegen.symbolic.derive import derive_equations
 
-EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "cart_pole_lqr.py"
 M, K, C = 1.0, 4.0, 0.5
 
 
-def load_example():
-    spec = importlib.util.spec_from_file_location("cart_pole_lqr", EXAMPLE)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
 
 
 @pytest.fixture(scope="module")
@@ -48,8 +39,8 @@ def oscillator(tmp_path_factory):
 
 
 @pytest.fixture(scope="module")
-def cart_pole(tmp_path_factory):
-    example = load_example()
+def cart_pole(tmp_path_factory, cart_pole_example):
+    example = cart_pole_example
     plant = compile_model(example.cart_pole(), methods=("rk4", "dopri5"), outputs=("rhs", "step_jacobian"),
                           cache_dir=tmp_path_factory.mktemp("cart_pole"))
     p = [example.PARAMETERS[name] for name in plant.layout.parameters]
@@ -107,8 +98,8 @@ def test_step_jacobians_tend_to_the_continuous_a_and_b(cart_pole):
     assert errors[1] < 2e-2 and 8 < errors[0] / errors[1] < 12  # first order in h: (Fx - I)/h = A + hA^2/2 + ...
 
 
-def test_float_step_jacobians(tmp_path):
-    example = load_example()
+def test_float_step_jacobians(tmp_path, cart_pole_example):
+    example = cart_pole_example
     plant = compile_model(example.cart_pole(), methods=("rk4",), outputs=("rhs", "step_jacobian"), precision="float",
                           cache_dir=tmp_path)
     p = [example.PARAMETERS[name] for name in plant.layout.parameters]
@@ -131,10 +122,10 @@ def test_step_jacobians_are_refused_where_they_do_not_exist(oscillator):
         step_jacobians(oscillator, [0.0, 0.0], [M, K, C], 0.1, r=[np.nan])
 
 
-def test_c_and_d_of_the_measurements():
+def test_c_and_d_of_the_measurements(cart_pole_example):
     """y = (pole tip x, pole tip y) = (x + l sin th, l cos th): C by hand at any state; D = 0;
     a measurement that reads the force directly has D = its coefficient."""
-    example = load_example()
+    example = cart_pole_example
     eom = derive_equations(example.cart_pole())
     th = 0.3
     linear = linearize_state(eom, [0.2, th, 0.5, -1.0], [1.5], values=example.PARAMETERS)
