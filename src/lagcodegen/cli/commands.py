@@ -71,8 +71,19 @@ def cmd_derive(args) -> int:
     elapsed = time.perf_counter() - start
     print(f"{eom.name}: {eom.route}, n = {eom.n}, derived in {elapsed:.3f} s")
     print(f"coordinates q = {list(eom.q)}; speeds u = {list(eom.u)}; parameters {list(eom.parameters)}")
-    print("M(q, t) ud = F(q, u, t) with")
-    blocks = [("M", eom.mass_matrix), ("F", eom.forcing)] + [("T + V", eom.energy)] * (eom.energy is not None)
+    if args.latex:
+        from ..symbolic.display import latex_equations
+
+        print(latex_equations(eom))
+        return EXIT_OK
+    print("M(q, t) ud = F(q, u, t) with" + (" (textbook display form)" if args.display else ""))
+    M, F = eom.display() if args.display else (eom.mass_matrix, eom.forcing)
+    energy = eom.energy
+    if args.display and energy is not None:
+        from ..symbolic.display import display_form
+
+        energy = display_form(energy)
+    blocks = [("M", M), ("F", F)] + [("T + V", energy)] * (energy is not None)
     for label, value in blocks:
         if args.pretty:
             print(f"{label} =")
@@ -181,9 +192,10 @@ def cmd_demo(args) -> int:
 
     start = time.perf_counter()
     eom = derive_equations(double_pendulum())
-    print(f"double pendulum ({eom.route}), M(q) ud = F(q, u):")
-    sp.pprint(eom.mass_matrix, use_unicode=False, wrap_line=False)
-    sp.pprint(eom.forcing, use_unicode=False, wrap_line=False)
+    print(f"double pendulum ({eom.route}), M(q) ud = F(q, u), as a textbook prints them:")
+    M, F = eom.display()
+    sp.pprint(M, use_unicode=False, wrap_line=False)
+    sp.pprint(F, use_unicode=False, wrap_line=False)
     system = compile_model(eom, methods=("rk4", "implicit_midpoint"))
     print(f"compiled {system.module_name} in {time.perf_counter() - start:.2f} s (cache: {system.path.parent})")
     x0 = {"q1": 1.0, "q2": 0.5}
@@ -214,6 +226,10 @@ def make_parser() -> Parser:
     derive.add_argument("model", help="example name or model file")
     derive.add_argument("--pretty", action="store_true",
                         help="2-D pictures instead of one sympy expression per element")
+    derive.add_argument("--display", action="store_true",
+                        help="the textbook form (angle differences combined, factors pulled out) instead of "
+                             "the emitted one")
+    derive.add_argument("--latex", action="store_true", help="print M qdd = F as LaTeX, in the textbook form")
     derive.set_defaults(run=cmd_derive)
     linear = commands.add_parser("linearize", help="print A, B of xd = f(x, r) about a state, with eigenvalues")
     linear.add_argument("model", help="example name or model file")

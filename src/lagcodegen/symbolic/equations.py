@@ -89,6 +89,18 @@ class EquationsOfMotion:
     measurements: tuple = ()
     n_holonomic: int = 0
 
+    def display(self) -> tuple:
+        """(M, F) as a textbook prints them (`display.display_form`); the emitted form is unchanged."""
+        from .display import display_equations
+
+        return display_equations(self)
+
+    def _repr_latex_(self) -> str:
+        """Notebooks render the equations in display form."""
+        from .display import latex_equations
+
+        return f"$\\displaystyle {latex_equations(self)}$"
+
     @property
     def m(self) -> int:
         """Number of holonomic constraints."""
