@@ -345,6 +345,7 @@ class Model:
         if self.motion_constraints and self.sympy_model is not None:
             raise ModelError("motion_constraints are for the energies and bodies routes; a sympy model brings its own")
         for i, c in enumerate(self.motion_constraints):
+            check_well_defined(f"motion constraint {i}", c)  # nan * x' folds to nan: name that first
             if not _dynamic_functions(c) & set(self.coordinates):
                 raise ModelError(f"motion constraint {i} ({c}) involves no coordinate")
             exprs.append((f"motion constraint {i}", c))

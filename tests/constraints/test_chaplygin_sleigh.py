@@ -104,13 +104,15 @@ def test_sympy_lagranges_method_with_nonhol_coneqs_is_the_same_model():
     ("no_speed", "involves no speed: a constraint on the positions belongs in constraints="),
     ("acceleration", "motion constraint 0 contains the acceleration"),
     ("undeclared", "motion constraint 0 uses symbols not declared as parameters: k"),
+    ("nan", "motion constraint 0 is nan"),
 ])
 def test_bad_motion_constraints_are_named(blade, match):
     x, y, theta = me.dynamicsymbols("x y theta")
     m = sp.symbols("m", positive=True)
     T = m * (x.diff(t) ** 2 + y.diff(t) ** 2) / 2 + theta.diff(t) ** 2 / 2
     constraint = {"nonlinear": x.diff(t) ** 2 - y.diff(t), "no_speed": x - y,
-                  "acceleration": x.diff(t, 2) - y.diff(t), "undeclared": sp.Symbol("k") * x.diff(t)}[blade]
+                  "acceleration": x.diff(t, 2) - y.diff(t), "undeclared": sp.Symbol("k") * x.diff(t),
+                  "nan": sp.nan * x.diff(t)}[blade]
     with pytest.raises(ModelError, match=match):
         derive_equations(Model("bad_blade", [x, y, theta], [m], kinetic_energy=T, motion_constraints=[constraint]))
 
