@@ -191,3 +191,24 @@ def cart_pole_example():
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
+
+
+def driven_oscillator_model(name: str = "driven_oscillator", **extra):
+    """m x'' + c x' + k x = F with the input F (m, k, c = 1, 4, 0.5): the driven tests' plant."""
+    import sympy as sp
+    import sympy.physics.mechanics as me
+
+    from lagcodegen import Model
+
+    x, F = me.dynamicsymbols("x F")
+    m, k, c = sp.symbols("m k c", positive=True)
+    measurements = {key: build(x, F, m, k, c) for key, build in extra.pop("measurements", {}).items()}
+    return Model(name, [x], [m, k, c], kinetic_energy=m * x.diff() ** 2 / 2, potential_energy=k * x ** 2 / 2,
+                 generalized_forces={x: F - c * x.diff()}, inputs=[F], parameter_values={"m": 1.0, "k": 4.0, "c": 0.5},
+                 measurements=measurements, **extra)
+
+
+@pytest.fixture(scope="session")
+def driven_oscillator():
+    """`driven_oscillator_model`, the builder."""
+    return driven_oscillator_model

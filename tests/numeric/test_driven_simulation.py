@@ -30,16 +30,9 @@ from lagcodegen.status import Status
 M, K, C = 1.0, 4.0, 0.5
 
 
-def oscillator_model(name="driven_oscillator"):
-    x, F = me.dynamicsymbols("x F")
-    m, k, c = sp.symbols("m k c", positive=True)
-    return Model(name, [x], [m, k, c], kinetic_energy=m * x.diff() ** 2 / 2, potential_energy=k * x ** 2 / 2,
-                 generalized_forces={x: F - c * x.diff()}, inputs=[F], parameter_values={"m": M, "k": K, "c": C})
-
-
 @pytest.fixture(scope="module")
-def oscillator(tmp_path_factory):
-    return compile_model(oscillator_model(), methods=("rk4", "euler", "radau_iia3", "symplectic_euler"),
+def oscillator(tmp_path_factory, driven_oscillator):
+    return compile_model(driven_oscillator(), methods=("rk4", "euler", "radau_iia3", "symplectic_euler"),
                          cache_dir=tmp_path_factory.mktemp("driven"))
 
 
@@ -196,8 +189,8 @@ def test_the_jacobian_gives_df_dr(oscillator):
     np.testing.assert_allclose(B, [[0.0], [1.0 / M]], atol=1e-15)
 
 
-def test_float_kernels_with_inputs(tmp_path):
-    system = compile_model(oscillator_model("driven_oscillator_f32"), methods=("rk4",), precision="float",
+def test_float_kernels_with_inputs(tmp_path, driven_oscillator):
+    system = compile_model(driven_oscillator("driven_oscillator_f32"), methods=("rk4",), precision="float",
                            cache_dir=tmp_path)
     run = simulate(system, {"x": 0.0}, t_end=2.0, h=1e-2, inputs=2.0)
     assert run.ok and run.x.dtype == np.float32
@@ -258,13 +251,9 @@ def test_a_failing_callable_stops_with_a_status_and_keeps_the_run(oscillator, ca
 
 # -- measurements y = h(q, u, r, t) and sweeps over input amplitudes ------------------------------
 @pytest.fixture(scope="module")
-def measured(tmp_path_factory):
-    x, F = me.dynamicsymbols("x F")
-    m, k, c = sp.symbols("m k c", positive=True)
-    model = Model("driven_measured", [x], [m, k, c], kinetic_energy=m * x.diff() ** 2 / 2,
-                  potential_energy=k * x ** 2 / 2, generalized_forces={x: F - c * x.diff()}, inputs=[F],
-                  parameter_values={"m": M, "k": K, "c": C},
-                  measurements={"spring_force": -k * x, "input_power": F * x.diff()})
+def measured(tmp_path_factory, driven_oscillator):
+    model = driven_oscillator("driven_measured", measurements={"spring_force": lambda x, F, m, k, c: -k * x,
+                                                                "input_power": lambda x, F, m, k, c: F * x.diff()})
     return compile_model(model, methods=("rk4",), cache_dir=tmp_path_factory.mktemp("measured"))
 
 

@@ -25,17 +25,10 @@ from lagcodegen.symbolic.derive import derive_equations
 M, K, C = 1.0, 4.0, 0.5
 
 
-
-
 @pytest.fixture(scope="module")
-def oscillator(tmp_path_factory):
-    x, F = me.dynamicsymbols("x F")
-    m, k, c = sp.symbols("m k c", positive=True)
-    model = Model("jac_oscillator", [x], [m, k, c], kinetic_energy=m * x.diff() ** 2 / 2,
-                  potential_energy=k * x ** 2 / 2, generalized_forces={x: F - c * x.diff()}, inputs=[F],
-                  parameter_values={"m": M, "k": K, "c": C})
-    return compile_model(model, methods=("rk4", "euler", "dopri5"), outputs=("rhs", "step_jacobian"),
-                         cache_dir=tmp_path_factory.mktemp("jac"))
+def oscillator(tmp_path_factory, driven_oscillator):
+    return compile_model(driven_oscillator("jac_oscillator"), methods=("rk4", "euler", "dopri5"),
+                         outputs=("rhs", "step_jacobian"), cache_dir=tmp_path_factory.mktemp("jac"))
 
 
 @pytest.fixture(scope="module")
