@@ -208,6 +208,7 @@ def test_float_kernels_with_inputs(tmp_path, driven_oscillator):
     ({"G": 1.0}, "unknown input"),
     ({}, "no value for input"),
     (float("inf"), "input 'F' is not finite"),
+    ((np.array([]), np.array([])), "the table has no knots"),
 ])
 def test_bad_inputs_are_named(oscillator, inputs, match):
     with pytest.raises(InputError, match=match):
@@ -217,6 +218,8 @@ def test_bad_inputs_are_named(oscillator, inputs, match):
 def test_bad_input_types_and_holds(oscillator):
     with pytest.raises(TypeError, match="real numbers"):
         simulate(oscillator, {"x": 0.0}, t_end=1.0, h=0.01, inputs="0.5")
+    with pytest.raises(TypeError, match="None is not a number"):
+        simulate(oscillator, {"x": 0.0}, t_end=1.0, h=0.01, inputs=[None])
     with pytest.raises(ValueError, match="hold must be one of"):
         simulate(oscillator, {"x": 0.0}, t_end=1.0, h=0.01, inputs=0.5, hold="cubic")
     with pytest.raises(ValueError, match="hold='foh'.*callable"):
@@ -236,6 +239,7 @@ def test_an_undriven_model_refuses_inputs(tmp_path):
     (lambda t, x: [0.0, 1.0] if t > 0.5 else [0.0], Status.INPUT_FAILED, r"returned \(2,\).*expected 1 value"),
     (lambda t, x: [np.nan] if t > 0.5 else [0.0], Status.NONFINITE_INPUT, "input 'F' = nan"),
     (lambda t, x: "a" if t > 0.5 else [0.0], Status.INPUT_FAILED, "returned"),
+    (lambda t, x: None if t > 0.5 else [0.0], Status.INPUT_FAILED, "returned 'NoneType'"),
 ])
 def test_a_failing_callable_stops_with_a_status_and_keeps_the_run(oscillator, callable_, status, detail):
     with warnings.catch_warnings(record=True) as caught:

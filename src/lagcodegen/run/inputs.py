@@ -95,6 +95,8 @@ def _numbers(values, what: str):
         raw = np.asarray(values)
         if raw.dtype.kind in "bUSc":
             raise TypeError(f"dtype {raw.dtype}")
+        if raw.dtype == object and any(v is None for v in raw.ravel()):
+            raise TypeError("None is not a number")
         return np.asarray(values, dtype=float)
     except (TypeError, ValueError, OverflowError) as error:
         raise TypeError(f"input {what}: values must be real numbers, got {values!r} ({error})") from None
@@ -140,8 +142,10 @@ def _sampled(values: np.ndarray, names, t0: float, h: float, n_steps: int, strid
 def _table(times, values, names, what: str) -> InputTable:
     times = np.asarray(_numbers(times, what), dtype=float)
     values = np.asarray(_numbers(values, what), dtype=float)
-    if times.ndim != 1 or times.size < 1:
+    if times.ndim != 1:
         raise InputError(f"input {what}: the table's times must be a 1-D array, got shape {times.shape}")
+    if times.size < 1:
+        raise InputError(f"input {what}: the table has no knots (empty times)")
     if values.ndim == 1 and len(names) == 1:
         values = values.reshape(-1, 1)
     if values.shape != (times.size, len(names)):
@@ -230,11 +234,12 @@ class CallableInputs:
             return self._fail(Status.INPUT_FAILED, f"the input callable raised {type(error).__name__}: {error} "
                                                    f"at t = {float(t):g}")
         try:
-            values = np.asarray(result, dtype=float).reshape(-1) if np.ndim(result) <= 1 else None
+            values = None if result is None else \
+                np.asarray(result, dtype=float).reshape(-1) if np.ndim(result) <= 1 else None
         except (TypeError, ValueError):
             values = None
         if values is None or values.size != len(self.names):
-            shape = np.shape(result) if not isinstance(result, (str, bytes)) else type(result).__name__
+            shape = np.shape(result) if not isinstance(result, (str, bytes, type(None))) else type(result).__name__
             return self._fail(Status.INPUT_FAILED, f"the input callable returned {shape!r} at t = {float(t):g}; "
                                                    f"expected {len(self.names)} value(s) for {', '.join(self.names)}")
         bad = [name for name, v in zip(self.names, values) if not math.isfinite(v)]
