@@ -94,8 +94,8 @@ def _c_test(sources, sample: SampleState, precision: str) -> str:
     context = {
         "version": _version(), "sympy_version": sp.__version__, "model": comment_text(layout.model),
         "key": sources.source_key, "prefix": layout.prefix,
-        "header_name": sources.header_name, "real": precision, "n": layout.n,
-        "n_state": 2 * layout.n, "n_matrix": layout.n * layout.n, "p_size": max(1, len(sample.p)),
+        "header_name": sources.header_name, "real": precision, "n_u": layout.n_u,
+        "n_state": layout.n_state, "n_matrix": layout.n_u * layout.n_u, "p_size": max(1, len(sample.p)),
         "state_values": ", ".join(map(literal, sample.x)),
         "param_values": ", ".join(map(literal, sample.p)) or literal(0),
         "mass_values": _numbers(sample.M), "forcing_values": _numbers(sample.F),

@@ -511,8 +511,8 @@ def _sympy_model_coordinates(obj: Any) -> list:
 
 
 def _check_speeds(kind: str, q_ind, q_dep, u_ind, u_dep, u_aux) -> None:
-    """One independent generalized speed per independent coordinate, nothing else: with more
-    speeds, M would be solved in a leading block only; with fewer, speeds would go missing."""
+    """Independent coordinates and speeds only (their counts may differ: Kane's kinematic
+    differential equations give every qd, e.g. a quaternion's four rates from three body rates)."""
     names = lambda symbols: ", ".join(map(str, symbols)) or "none"  # noqa: E731
     unsupported = "velocity constraints and auxiliary speeds are not supported yet"
     if len(q_dep):
@@ -523,8 +523,3 @@ def _check_speeds(kind: str, q_ind, q_dep, u_ind, u_dep, u_aux) -> None:
         raise ModelError(f"{kind} has dependent speeds ({names(u_dep)}): {unsupported}")
     if len(u_aux):
         raise ModelError(f"{kind} has auxiliary speeds ({names(u_aux)}): {unsupported}")
-    if len(u_ind) != len(q_ind):
-        raise ModelError(
-            f"{kind} has {len(u_ind)} independent speeds ({names(u_ind)}) for {len(q_ind)} coordinates "
-            f"({names(q_ind)}): lagcodegen needs one generalized speed per coordinate (qd = K(q, u, t) "
-            f"solved for all of qd); {unsupported}")

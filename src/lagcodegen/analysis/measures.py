@@ -254,7 +254,7 @@ def _is_bounded(system, method, x, w, hw, params, steps) -> bool:
         warnings.simplefilter("ignore", RuntimeWarning)  # divergence is what we are looking for
         traj = simulate(system, x, steps * h, h, method, params=params, energy=with_energy,
                         check_stability=False)
-    return traj.ok and _growth(traj, w, system.layout.n) <= GROWTH_LIMIT
+    return traj.ok and _growth(traj, w, system.layout.n_q) <= GROWTH_LIMIT
 
 
 def measured_stability_limit(system: CompiledSystem, method: str, x0, w: float, *, params: Mapping | None = None,

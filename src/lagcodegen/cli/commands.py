@@ -69,7 +69,8 @@ def cmd_derive(args) -> int:
     start = time.perf_counter()
     eom = derive_equations(model)
     elapsed = time.perf_counter() - start
-    print(f"{eom.name}: {eom.route}, n = {eom.n}, derived in {elapsed:.3f} s")
+    speeds = f", {eom.n_u} speeds" if eom.n_u != eom.n_q else ""
+    print(f"{eom.name}: {eom.route}, n = {eom.n_q}{speeds}, derived in {elapsed:.3f} s")
     print(f"coordinates q = {list(eom.q)}; speeds u = {list(eom.u)}; parameters {list(eom.parameters)}")
     if args.latex:
         from ..symbolic.display import latex_equations

@@ -184,7 +184,7 @@ def cmd_simulate(args) -> int:
     check_output_file(args.out, "--out")
     check_output_file(args.plot, "--plot")
     eom, fixed, params, x0 = prepare_run(args, "simulate")
-    steps = check_steps(args, 2 * eom.n + bool(args.energy))
+    steps = check_steps(args, eom.n_state + bool(args.energy))
     if args.energy and eom.energy is None:
         raise UsageError(f"--energy: model {eom.name!r} has no energy expression")
     start = time.perf_counter()
@@ -336,7 +336,7 @@ def cmd_sweep(args) -> int:
     members = parse_grid(args.grid) if args.grid else read_table(args.table)
     eom, fixed, params, x0 = prepare_run(args, "sweep", swept=members)
     n_members = math.prod(len(v) for v in members.values()) if args.grid else len(next(iter(members.values())))
-    steps = check_steps(args, 2 * eom.n, n_members, keep=args.trajectories)
+    steps = check_steps(args, eom.n_state, n_members, keep=args.trajectories)
     for name in members:  # a swept coordinate needs no base value in --x0
         if name in [q.name for q in eom.q]:
             x0.setdefault(name, float(members[name][0]))

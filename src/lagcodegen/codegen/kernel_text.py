@@ -48,7 +48,7 @@ def _solver_locals(n: int) -> set:
 
 def names_for(system: ReducedSystem, model_name: str) -> Names:
     """C names of ``system``'s symbols (CSE temporaries first), clear of the generated code's own."""
-    taken = set(RESERVED) | _solver_locals(len(system.q))
+    taken = set(RESERVED) | _solver_locals(max(len(system.q), len(system.u)))
     if system.inputs or system.measurements:
         taken |= DRIVEN_RESERVED
     temporaries = [s for k in system.kernels for s, _ in k.temporaries]
@@ -81,8 +81,16 @@ class KernelWriter:
         return self.names.prefix
 
     @property
-    def n(self) -> int:
+    def n_q(self) -> int:
         return len(self.system.q)
+
+    @property
+    def n_u(self) -> int:
+        return len(self.system.u)
+
+    @property
+    def n_state(self) -> int:
+        return len(self.system.q) + len(self.system.u)
 
     @property
     def n_inputs(self) -> int:

@@ -82,14 +82,14 @@ def lane_context(system, names, real: str, methods: list, lanes: int, trig: str 
         raise EmitError(f"lane trig must be one of {TRIG_MODES}, got {trig!r}")
     if not lanes_apply(system, methods):
         return {"has_lanes": False}
-    n, prefix = len(system.q), names.prefix
+    n, N, prefix = len(system.u), len(system.q) + len(system.u), names.prefix  # n: speeds, the size of M
     printer = LanePrinter(real, names.symbols, prefix) if trig == "fast" else CPrinter(real, names.symbols)
     steppers = []
     for number, name in enumerate(dict.fromkeys(methods)):
         scheme = get_scheme(name)
         if scheme.lane_capable:
             steppers.append({"name": scheme.name, "id": number, "title": scheme.title or scheme.name,
-                             "lines": _stage_lines(scheme, prefix, 2 * n * lanes)})
+                             "lines": _stage_lines(scheme, prefix, N * lanes)})
     has_energy = "energy" in system.outputs
     prototype = _record("int", f"{prefix}_sweep_lanes",
                         f"int method, long n_members, const {real} *x0s, const {real} *ps, {real} t0, "
@@ -106,7 +106,7 @@ def lane_context(system, names, real: str, methods: list, lanes: int, trig: str 
         "lane_limit": "LCG_TRIGF_LIMIT" if real == "float" else "LCG_TRIG_LIMIT",
         "lane_steppers": steppers, "lane_max_stages": max(get_scheme(s["name"]).stages for s in steppers),
         "lane_dynamics": _dynamics_lines(system, names, printer, real, lanes), "lane_energy": [],
-        "n_state_lanes": 2 * n * lanes, "n_lanes": n * lanes,
+        "n_state_lanes": N * lanes, "n_lanes": n * lanes, "n_q_lanes": len(system.q) * lanes,
         "n_param_lanes": max(1, len(system.free_parameters) + len(system.inputs)) * lanes,
         "lane_params": max(1, len(system.free_parameters) + len(system.inputs)),
         "lane_inputs": f"p_lane + {len(system.free_parameters)}, " if system.inputs else "",
@@ -155,7 +155,7 @@ def _head(kernel, names, printer, real: str, lanes: int) -> list:
 def _dynamics_lines(system, names, printer, real: str, lanes: int) -> list:
     """Loop body of the lane dynamics: K, M, F, the flagged LDL^T and xdot of lane l."""
     kernel = system.kernel("dynamics")
-    n = len(system.q)
+    n_q, n = len(system.q), len(system.u)
     lines = _head(kernel, names, printer, real, lanes) + [f"{real} {_SINGULAR} = {_literal(0, real)};"]
     blocks = {}
     for (b, i, j), expr in kernel.results:
@@ -167,20 +167,20 @@ def _dynamics_lines(system, names, printer, real: str, lanes: int) -> list:
     for (j, _), expr in blocks.get("F", {}).items():
         lines.append(f"const {real} F_{j} = {_print(printer, expr, f'F[{j}]')};")
     if system.kinematics_identity:
-        lines += [f"xdot[{j * lanes} + lcg_lane] = x[{(n + j) * lanes} + lcg_lane];" for j in range(n)]
+        lines += [f"xdot[{j * lanes} + lcg_lane] = x[{(n_q + j) * lanes} + lcg_lane];" for j in range(n_q)]
     else:
         lines += [f"xdot[{j * lanes} + lcg_lane] = {_print(printer, expr, f'qd[{j}]')};"
                   for (j, _), expr in blocks["K"].items()]
     factor, LD = ldlt_factor_lines(n, {jk for jk, e in M.items() if e != 0}, real, flag=_SINGULAR)
     factor += [f"gauge[{j * lanes} + lcg_lane] = D_{j};" for j in range(n)]  # the singularity monitor's pivots
     lines += factor + ldlt_substitution_lines(n, LD, real, lambda i: f"F_{i}",
-                                              lambda i: f"xdot[{(n + i) * lanes} + lcg_lane]")
+                                              lambda i: f"xdot[{(n_q + i) * lanes} + lcg_lane]")
     lines.append(f"lcg_redo[lcg_lane] = {_SINGULAR} + {_WIDE};")
     return lines
 
 
 def _stage_lines(scheme, prefix: str, size: int) -> list:
-    """Stages of one explicit tableau over all lanes at once (``size`` = 2n * lanes values), with
+    """Stages of one explicit tableau over all lanes at once (``size`` = (n_q + n_u) * lanes values), with
     the scalar stepper's coefficient arrays and sums, so each lane rounds as the scalar step does."""
     name = f"{prefix}_{scheme.name}"
 

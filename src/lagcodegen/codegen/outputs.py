@@ -30,23 +30,23 @@ class KernelError(ValueError):
 # -- symbolic rows, one function per reduced kernel ----------------------------------------------
 def _mass_rows(eom: EquationsOfMotion) -> list:
     M = eom.mass_matrix
-    return [(("M", j, k), M[j, k]) for j in range(eom.n) for k in range(j + 1)]
+    return [(("M", j, k), M[j, k]) for j in range(eom.n_u) for k in range(j + 1)]
 
 
 def _forcing_rows(eom: EquationsOfMotion) -> list:
-    return [(("F", j, 0), eom.forcing[j]) for j in range(eom.n)]
+    return [(("F", j, 0), eom.forcing[j]) for j in range(eom.n_u)]
 
 
 def _dynamics_rows(eom: EquationsOfMotion, accelerations) -> list:
     kinematics = [] if list(eom.kinematics) == list(eom.u) else \
-        [(("K", j, 0), eom.kinematics[j]) for j in range(eom.n)]
+        [(("K", j, 0), eom.kinematics[j]) for j in range(eom.n_q)]
     return kinematics + _mass_rows(eom) + _forcing_rows(eom) + _constraint_rows(eom, with_bias=True)
 
 
 def _constraint_rows(eom: EquationsOfMotion, with_bias: bool) -> list:
     """("A", i, j) = dphi_i/dq_j and then ("C", i, 0) = gamma_i (dynamics) or ("R", i, 0) = phi_i,
     ("T", i, 0) = dphi_i/dt (residuals and projection)."""
-    m, n = eom.m, eom.n
+    m, n = eom.m, eom.constraint_jacobian.cols
     rows = [(("A", i, j), eom.constraint_jacobian[i, j]) for i in range(m) for j in range(n)]
     if with_bias:
         return rows + [(("C", i, 0), eom.constraint_bias[i]) for i in range(m)]
@@ -61,16 +61,16 @@ def _jacobian_rows(eom: EquationsOfMotion, a) -> list:
     With a = ud the Jacobian of the first-order right-hand side is
     [[dK/dq, dK/du], [-M^-1 dG/dq, -M^-1 dG/du]] (Hairer-Wanner II, sec. VI.1 for the index-1 form).
     """
-    n = eom.n
+    n_q, n_u = eom.n_q, eom.n_u
     x = list(eom.q) + list(eom.u)
-    G = [sp.Add(*[eom.mass_matrix[j, k] * a[k] for k in range(n) if eom.mass_matrix[j, k] != 0]) - eom.forcing[j]
-         for j in range(n)]
-    rows = [(("G", j, c), _classical(G[j].diff(xc))) for j in range(n) for c, xc in enumerate(x)]
-    rows += [(("GR", j, c), _classical(G[j].diff(rc))) for j in range(n) for c, rc in enumerate(eom.inputs)]
+    G = [sp.Add(*[eom.mass_matrix[j, k] * a[k] for k in range(n_u) if eom.mass_matrix[j, k] != 0]) - eom.forcing[j]
+         for j in range(n_u)]
+    rows = [(("G", j, c), _classical(G[j].diff(xc))) for j in range(n_u) for c, xc in enumerate(x)]
+    rows += [(("GR", j, c), _classical(G[j].diff(rc))) for j in range(n_u) for c, rc in enumerate(eom.inputs)]
     if list(eom.kinematics) != list(eom.u):
-        rows += [(("DK", j, c), _classical(eom.kinematics[j].diff(xc))) for j in range(n) for c, xc in enumerate(x)]
+        rows += [(("DK", j, c), _classical(eom.kinematics[j].diff(xc))) for j in range(n_q) for c, xc in enumerate(x)]
         rows += [(("DKR", j, c), _classical(eom.kinematics[j].diff(rc)))
-                 for j in range(n) for c, rc in enumerate(eom.inputs)]
+                 for j in range(n_q) for c, rc in enumerate(eom.inputs)]
     return _mass_rows(eom) + rows
 
 
@@ -175,7 +175,7 @@ def _momentum_obstacle_message(eom: EquationsOfMotion) -> str | None:
 
 # -- C bodies, one writer per output --------------------------------------------------------------
 def _mass_matrix_c(w: KernelWriter, kernel) -> dict:
-    n = w.n
+    n = w.n_u
     body = w.head(kernel) + ["/* Mass matrix, lower triangle, mirrored */"]
     for (j, k), expr in results(kernel, "M").items():
         body.append(f"M[{j * n + k}] = {w.expr(expr, f'M[{j}][{k}]')};  /* M[{j}][{k}] */")
@@ -190,24 +190,24 @@ def _forcing_c(w: KernelWriter, kernel) -> dict:
     for (j, _), expr in results(kernel, "F").items():
         body.append(f"F[{j}] = {w.expr(expr, f'F[{j}]')};")
     what = "F(q, u, r, t)" if w.n_inputs else "F(q, u, t)"
-    return record("void", f"{w.prefix}_forcing", f"{w.driven_arguments}, {w.real} *F", f"Forcing {what}, {w.n} values.",
-                  body)
+    return record("void", f"{w.prefix}_forcing", f"{w.driven_arguments}, {w.real} *F",
+                  f"Forcing {what}, {w.n_u} values.", body)
 
 
 def _accel_c(w: KernelWriter, kernel) -> dict:
-    n, prefix = w.n, w.prefix
-    body = [f"{w.real} qd[{n}];",
-            f"return {prefix}_finite_result({prefix}_dynamics(t, x, {w.rp}, qd, ud, 0), ud, {n});"]
+    prefix = w.prefix
+    body = [f"{w.real} qd[{w.n_q}];",
+            f"return {prefix}_finite_result({prefix}_dynamics(t, x, {w.rp}, qd, ud, 0), ud, {w.n_u});"]
     return record("int", f"{prefix}_accel", f"{w.driven_arguments}, {w.real} *ud",
                   "Generalized accelerations ud solving M ud = F; returns a status code.", body)
 
 
 def _rhs_c(w: KernelWriter, kernel) -> dict:
-    n, prefix = w.n, w.prefix
-    body = [f"return {prefix}_finite_result({prefix}_dynamics(t, x, {w.rp}, xdot, xdot + {n}, 0), xdot, {2 * n});"]
+    prefix, size = w.prefix, w.n_state
+    body = [f"return {prefix}_finite_result({prefix}_dynamics(t, x, {w.rp}, xdot, xdot + {w.n_q}, 0), xdot, {size});"]
     what = "f(t, x, r)" if w.n_inputs else "f(t, x)"
     return record("int", f"{prefix}_rhs", f"{w.driven_arguments}, {w.real} *xdot",
-                  f"First-order right-hand side xdot = {what}, x = (q, u), {2 * n} values; "
+                  f"First-order right-hand side xdot = {what}, x = (q, u), {size} values; "
                   "returns a status code. xdot must not alias x.", body)
 
 
@@ -238,9 +238,9 @@ def _measurements_c(w: KernelWriter, kernel) -> dict:
 
 def _jacobian_c(w: KernelWriter, kernel) -> dict:
     """J = df/dx of the first-order system: [[dK/dq, dK/du], [-M^-1 dG/dq, -M^-1 dG/du]]."""
-    n, prefix, real = w.n, w.prefix, w.real
-    size = 2 * n
-    body = [f"{real} qd[{n}];", f"{real} ud[{n}];", f"{real} B[{n}][{size}];", "int c;",
+    n_q, n, prefix, real = w.n_q, w.n_u, w.prefix, w.real
+    size = w.n_state
+    body = [f"{real} qd[{n_q}];", f"{real} ud[{n}];", f"{real} B[{n}][{size}];", "int c;",
             f"const int status = {prefix}_dynamics(t, x, {w.rp}, qd, ud, 0);",
             "if (status != LCG_OK) return status;"]
     n_r = w.n_inputs
@@ -263,18 +263,18 @@ def _jacobian_c(w: KernelWriter, kernel) -> dict:
             body.append(f"Br[{j}][{c}] = {value};")
     body.append("/* Kinematic rows dK/dx */")
     DK = results(kernel, "DK")
-    for j in range(n):
+    for j in range(n_q):
         for c in range(size):
             if DK:
                 value = w.expr(DK[(j, c)], f"dK[{j}]/dx[{c}]")
             else:
-                value = literal(1 if c == n + j else 0, real)
+                value = literal(1 if c == n_q + j else 0, real)
             body.append(f"J[{j * size + c}] = {value};")
     factor, LD = ldlt_factor_lines(n, {jk for jk, e in M.items() if e != 0}, real, f"{prefix}_pivot_failure(x)")
     body += factor
     body.append(f"for (c = 0; c < {size}; ++c) {{")
     solve = ldlt_substitution_lines(n, LD, real, lambda i: f"B[{i}][c]",
-                                    lambda i: f"J[{(n + i) * size} + c]")
+                                    lambda i: f"J[{(n_q + i) * size} + c]")
     body += ["    " + line for line in solve]
     body.append("}")
     arguments, doc = f"{w.driven_arguments}, {real} *J", ""
@@ -282,9 +282,9 @@ def _jacobian_c(w: KernelWriter, kernel) -> dict:
         DKR = results(kernel, "DKR")
         body += ["if (Jr) {  /* df/dr: dK/dr, then M^-1 dF/dr */"]
         body += [f"    Jr[{j * n_r + c}] = {w.expr(DKR[(j, c)], f'dK[{j}]/dr[{c}]') if DKR else literal(0, real)};"
-                 for j in range(n) for c in range(n_r)]
+                 for j in range(n_q) for c in range(n_r)]
         body.append(f"    for (c = 0; c < {n_r}; ++c) {{")
-        solve = ldlt_substitution_lines(n, LD, real, lambda i: f"Br[{i}][c]", lambda i: f"Jr[{(n + i) * n_r} + c]")
+        solve = ldlt_substitution_lines(n, LD, real, lambda i: f"Br[{i}][c]", lambda i: f"Jr[{(n_q + i) * n_r} + c]")
         body += ["        " + line for line in solve]
         body += ["    }", f"    c = {prefix}_finite_result(LCG_OK, Jr, {size * n_r});",
                  "    if (c != LCG_OK) return c;", "}"]
@@ -297,8 +297,8 @@ def _jacobian_c(w: KernelWriter, kernel) -> dict:
 
 
 def _multipliers_c(w: KernelWriter, kernel) -> dict:
-    n, prefix, real, m = w.n, w.prefix, w.real, w.system.n_constraints
-    body = [f"{real} qd[{n}], ud[{n}];",
+    n, prefix, real, m = w.n_u, w.prefix, w.real, w.system.n_constraints
+    body = [f"{real} qd[{w.n_q}], ud[{n}];",
             f"const int status = {prefix}_dynamics_constrained(t, x, {w.rp}, qd, ud, lam, Q, 0);",
             f"return {prefix}_finite_result(status, lam, {m});"]
     return record("int", f"{prefix}_multipliers", f"{w.driven_arguments}, {real} *lam, {real} *Q",
@@ -307,7 +307,7 @@ def _multipliers_c(w: KernelWriter, kernel) -> dict:
 
 
 def _constraints_c(w: KernelWriter, kernel) -> dict:
-    n, m, real = w.n, w.system.n_constraints, w.real
+    n, m, real = w.n_u, w.system.n_constraints, w.real
     body = w.head(kernel) + ["/* phi, A = dphi/dq, dphi/dt */"]
     body += [f"phi[{i}] = {w.expr(e, f'phi[{i}]')};" for (i, _), e in results(kernel, "R").items()]
     body += [f"A[{i * n + j}] = {w.expr(e, f'dphi[{i}]/dq[{j}]')};" for (i, j), e in results(kernel, "A").items()]
@@ -327,7 +327,7 @@ def _constraints_template_functions(w: KernelWriter) -> list:
 
 
 def _momentum_c(w: KernelWriter, kernel) -> dict:
-    n = w.n
+    n = w.n_u  # the momentum form needs qd = u: n_q == n_u
     body = w.head(kernel, reads_inputs=True) + ["/* Mass matrix, lower triangle, mirrored */"]
     for (j, k), expr in results(kernel, "M").items():
         body.append(f"M[{j * n + k}] = {w.expr(expr, f'M[{j}][{k}]')};")
@@ -463,7 +463,7 @@ def _finite_result_function(w: KernelWriter) -> dict:
 def _dynamics_functions(w: KernelWriter) -> list:
     """Static kernel behind accel and rhs: K, M, F with joint CSE, then an unrolled LDL^T solve
     (with an always-inlined copy for the explicit steppers when it is small, `hot_dynamics`)."""
-    system, real, prefix, n = w.system, w.real, w.prefix, w.n
+    system, real, prefix, n = w.system, w.real, w.prefix, w.n_u
     kernel = system.kernel("dynamics")
     body = w.head(kernel, touches_state=system.kinematics_identity, reads_inputs=True)
     M = results(kernel, "M")
@@ -476,7 +476,7 @@ def _dynamics_functions(w: KernelWriter) -> list:
         body.append(f"const {real} F_{j} = {w.expr(expr, f'F[{j}]')};")
     body.append("/* Kinematics qd = K(q, u, t) */")
     if system.kinematics_identity:
-        body += [f"qd[{j}] = x[{n + j}];" for j in range(n)]
+        body += [f"qd[{j}] = x[{w.n_q + j}];" for j in range(w.n_q)]
     else:
         body += [f"qd[{j}] = {w.expr(expr, f'qd[{j}]')};" for (j, _), expr in results(kernel, "K").items()]
     nonzero = {jk for jk, e in M.items() if e != 0}
@@ -518,7 +518,7 @@ def _gauge_lines(n: int, indent: bool = True) -> list:
 
 
 def _constrained_solve_lines(w: KernelWriter, kernel, nonzero, failure) -> list:
-    real, n, m, prefix = w.real, w.n, w.system.n_constraints, w.prefix
+    real, n, m, prefix = w.real, w.n_u, w.system.n_constraints, w.prefix
     body = [f"{real} A[{m * n}], C[{m}], z[{n}], Y[{n * m}];", "int c, i;", "/* A = dphi/dq, gamma */"]
     for (i, j), expr in results(kernel, "A").items():
         body.append(f"A[{i * n + j}] = {w.expr(expr, f'dphi[{i}]/dq[{j}]')};")

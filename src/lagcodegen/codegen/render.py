@@ -73,7 +73,23 @@ class KernelLayout:
     measurements: tuple = ()
 
     @property
+    def n_q(self) -> int:
+        return len(self.coordinates)
+
+    @property
+    def n_u(self) -> int:
+        return len(self.speeds)
+
+    @property
+    def n_state(self) -> int:
+        return len(self.coordinates) + len(self.speeds)
+
+    @property
     def n(self) -> int:
+        """The common count of coordinates and speeds; an error when they differ (use n_q, n_u)."""
+        if len(self.coordinates) != len(self.speeds):
+            raise ValueError(f"model {self.model!r} has {len(self.coordinates)} coordinates and "
+                             f"{len(self.speeds)} speeds: this step needs one speed per coordinate")
         return len(self.coordinates)
 
 
@@ -240,9 +256,9 @@ def _context(system: ReducedSystem, names: Names, layout: KernelLayout, function
              has_dynamics: bool) -> dict:
     from .. import __version__
 
-    n = len(system.q)
+    n_q, n = len(system.q), len(system.u)
     state_rows = [{"index": i, "name": comment_text(s.name), "c_name": names.symbols[s],
-                   "kind": "coordinate" if i < n else "speed"}
+                   "kind": "coordinate" if i < n_q else "speed"}
                   for i, s in enumerate(system.q + system.u)]
     param_rows = [{"index": i, "name": comment_text(s.name), "c_name": names.symbols[s]}
                   for i, s in enumerate(system.free_parameters)]
@@ -254,7 +270,7 @@ def _context(system: ReducedSystem, names: Names, layout: KernelLayout, function
         "version": __version__, "sympy_version": sp.__version__, "model": comment_text(layout.model),
         "route": system.route, "key": hashlib.sha256(key_text.encode()).hexdigest()[:16],
         "prefix": names.prefix, "guard": f"{upper}_H", "macro": upper, "real": real,
-        "n": n, "n_state": 2 * n, "n_params": len(param_rows), "n_points": len(point_rows),
+        "n_q": n_q, "n_u": n, "n_state": n_q + n, "n_params": len(param_rows), "n_points": len(point_rows),
         "state_rows": state_rows, "param_rows": param_rows, "fixed_rows": fixed_rows,
         "point_rows": point_rows, "has_fixed": bool(fixed_rows),
         "status_codes": [{"name": row.c_name, "value": row.code, "doc": row.message} for row in STATUS_TABLE],

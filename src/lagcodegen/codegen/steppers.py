@@ -42,8 +42,8 @@ def stepper_context(system, names, real: str, methods: list) -> dict:
     """Template context of the integrators: coefficient tables, step functions, the driver."""
     from ..integrators.schemes import KIND_EXPLICIT, KIND_IMPLICIT, get_scheme
 
-    n, prefix = len(system.q), names.prefix
-    N, G = 2 * n, gauge_size(system)
+    n, prefix = len(system.u), names.prefix  # n: speeds, the size of M
+    N, G = len(system.q) + n, gauge_size(system)
     points = len(system.point_names) if "points" in system.outputs else 0
     context = {"has_steppers": bool(methods), "tableaux": [], "methods": [], "exported": [],
                "explicit_steppers": [],
@@ -83,7 +83,7 @@ def stepper_context(system, names, real: str, methods: list) -> dict:
             context["explicit_steppers"].append(
                 {"name": scheme.name, "title": scheme.title or scheme.name, "order": scheme.order,
                  "stages": scheme.stages,
-                 "lines": _explicit_stage_lines(scheme, prefix, n, dynamics, bool(system.inputs))})
+                 "lines": _explicit_stage_lines(scheme, prefix, len(system.q), N, dynamics, bool(system.inputs))})
         elif kind == KIND_IMPLICIT:
             context["tableaux"].append(_tableau_record(scheme, real))
             s = scheme.stages
@@ -164,8 +164,8 @@ def _step_jacobian_context(system, context: dict, prefix: str, real: str, method
 
     if "step_jacobian" not in system.outputs:
         return {"step_jacobians": []}
-    n, n_r = len(system.q), len(system.inputs)
-    N = 2 * n
+    n_r = len(system.inputs)
+    N = len(system.q) + len(system.u)
     rows = []
     for name in dict.fromkeys(methods):
         scheme = get_scheme(name)
@@ -198,9 +198,9 @@ def _exported_call(prefix: str, name: str, driven: bool) -> str:
 
 
 def gauge_size(system) -> int:
-    """Values of one singularity gauge: the n pivots of M, then (constrained) the m pivots of
-    A M^-1 A^T and the m x n constraint Jacobian A (its orientation between steps)."""
-    n, m = len(system.q), system.n_constraints
+    """Values of one singularity gauge: the n pivots of M (n speeds), then (constrained) the m pivots
+    of A M^-1 A^T and the m x n constraint Jacobian A (its orientation between steps)."""
+    n, m = len(system.u), system.n_constraints
     return n + m + m * n
 
 
@@ -215,18 +215,18 @@ def _tableau_record(scheme, real: str) -> dict:
             "c_values": ", ".join(value(v) for v in scheme.c), "c_comment": ", ".join(map(str, scheme.c))}
 
 
-def _explicit_stage_lines(scheme, prefix: str, n: int, dynamics: str, driven: bool = False) -> list:
+def _explicit_stage_lines(scheme, prefix: str, n_q: int, N: int, dynamics: str, driven: bool = False) -> list:
     """Straight-line stages of one explicit tableau: only its nonzero a_ij and b_i, read from the
     method's coefficient arrays (constant indices, so the compiler folds them). ``driven``: the
     stages read the inputs r (held, or r + c_i dr on a ramp; `input_context`)."""
-    N, name = 2 * n, f"{prefix}_{scheme.name}"
+    name = f"{prefix}_{scheme.name}"
 
     def evaluate(i, state):
         gauge = "gauge" if i == 0 else "0"  # stage 0 is evaluated at x itself: its pivots are x's
         inputs = ""
         if driven:
             inputs = "r, " if scheme.c[i] == 0 else f"{prefix}_stage_inputs(r, dr, {name}_c[{i}], rs), "
-        return [f"status = {dynamics}(t + {name}_c[{i}] * h, {state}, {inputs}p, k + {i * N}, k + {i * N + n}, "
+        return [f"status = {dynamics}(t + {name}_c[{i}] * h, {state}, {inputs}p, k + {i * N}, k + {i * N + n_q}, "
                 f"{gauge});",
                 "if (status != LCG_OK) return status;"]
 

@@ -123,8 +123,9 @@ def output_bytes(layout, n_steps: int, stride: int = 1, *, n_members: int = 1, e
     keeping final states only) counts none."""
     if not trajectory:
         return 0
-    n, m = layout.n, layout.n_constraints
-    per_sample = 1 + 2 * n + energy + 3 * len(layout.points) * points + 2 * m * residuals + (m + n) * multipliers
+    n, m = layout.n_u, layout.n_constraints
+    per_sample = 1 + layout.n_state + energy + 3 * len(layout.points) * points + 2 * m * residuals + \
+        (m + n) * multipliers
     itemsize = 4 if layout.precision == "float" else 8
     return n_members * (n_steps // stride + 1) * per_sample * itemsize
 

@@ -212,7 +212,7 @@ class CallableInputs:
     def __init__(self, system, function: Callable):
         self.function = function
         self.names = system.layout.inputs
-        self.n_state = 2 * system.layout.n
+        self.n_state = system.layout.n_state
         self.dtype = np.float32 if system.layout.precision == "float" else np.float64
         self.detail: str | None = None
         self.error: BaseException | None = None

@@ -338,12 +338,12 @@ def _run(system, x, p, t0, h, n_steps, stride, method, outputs, track_residuals,
     layout, dtype = system.layout, real_dtype(system)
     n_out = n_steps // stride + 1
     t_out = np.empty(n_out, dtype=dtype)
-    x_out = np.empty((n_out, 2 * layout.n), dtype=dtype)
+    x_out = np.empty((n_out, layout.n_state), dtype=dtype)
     e_out = np.empty(n_out, dtype=dtype) if outputs["energy"] else None
     p_out = np.empty((n_out, len(layout.points), 3), dtype=dtype) if outputs["points"] else None
     m = layout.n_constraints
     r_out = np.full((n_out, 2 * m), np.nan, dtype=dtype) if m and track_residuals else None
-    m_out = np.full((n_out, m + layout.n), np.nan, dtype=dtype) if m and outputs["multipliers"] else None
+    m_out = np.full((n_out, m + layout.n_u), np.nan, dtype=dtype) if m and outputs["multipliers"] else None
     work = np.empty(work_size(system), dtype=dtype)
     steps_done = system.ffi.new("long *")
     ptr = lambda a: system.ffi.NULL if a is None else c_pointer(system, a)  # noqa: E731
@@ -414,7 +414,7 @@ def jacobian(system: CompiledSystem, x, p, t: float = 0.0, r=None, with_inputs: 
     name = f"{layout.prefix}_jacobian"
     if name not in layout.functions:
         raise ValueError(f"model {layout.model!r} was compiled without the 'jacobian' output")
-    size = 2 * layout.n
+    size = layout.n_state
     J = np.empty((size, size), dtype=real_dtype(system))
     x, p = np.ascontiguousarray(x, dtype=real_dtype(system)), np.ascontiguousarray(p, dtype=real_dtype(system))
     driven, Jr = (), None
@@ -565,7 +565,7 @@ def make_rhs(system: CompiledSystem, params: Mapping | None = None, inputs=None)
 def step_jacobians(system: CompiledSystem, x, p, h: float, method: str = "rk4", r=None, t: float = 0.0):
     """One compiled explicit step from (t, x) with inputs ``r`` held, and its exact Jacobians.
 
-    Returns (x_next (2n,), Fx = dx+/dx (2n, 2n), Fr = dx+/dr (2n, n_r)): the discrete plant's
+    Returns (x_next (N,), Fx = dx+/dx (N, N), Fr = dx+/dr (N, n_r)), N = n_q + n_u: the discrete plant's
     linearization for an extended Kalman filter, MPC or a discrete LQR. Needs the kernel built
     with the ``step_jacobian`` output and ``method`` (an explicit Runge-Kutta method) compiled in.
     """
@@ -575,7 +575,7 @@ def step_jacobians(system: CompiledSystem, x, p, h: float, method: str = "rk4", 
     if name not in layout.functions:
         raise ValueError(f"model {layout.model!r} has no step Jacobian for {method!r}: compile it with "
                          "outputs=(..., 'step_jacobian') and an explicit method")
-    dtype, size, n_r = real_dtype(system), 2 * layout.n, len(layout.inputs)
+    dtype, size, n_r = real_dtype(system), layout.n_state, len(layout.inputs)
     state = np.array(initial_state(system, x), dtype=dtype)
     p = np.ascontiguousarray(p, dtype=dtype)
     h = real_number(h, "h")

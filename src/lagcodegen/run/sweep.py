@@ -262,7 +262,7 @@ def _check_sweep_size(layout, n_members: int, n_columns: int, n_steps: int, stri
     """Refuse sweeps whose per-member arrays (inputs, results and kept trajectories) do not fit."""
     itemsize = 4 if layout.precision == "float" else 8
     # values (n_columns doubles), x0 and x_final (2n each), q_max (n), p, energy error, status, steps
-    per_member = 8 * n_columns + itemsize * (5 * layout.n + len(layout.parameters) + 2) + 4 + 8
+    per_member = 8 * n_columns + itemsize * (2 * layout.n_state + layout.n_q + len(layout.parameters) + 2) + 4 + 8
     kept = output_bytes(layout, n_steps, stride, n_members=n_members, trajectory=trajectories)
     kept -= itemsize * n_members * (n_steps // stride + 1) if trajectories else 0  # no t per member
     if trajectories:
@@ -348,10 +348,10 @@ class _Job:
 
 def _allocate(job: _Job, n_members: int) -> dict:
     layout, dtype = job.system.layout, real_dtype(job.system)
-    size = 2 * layout.n
+    size = layout.n_state
     return {
         "x_final": np.full((n_members, size), np.nan, dtype),
-        "q_max": np.full((n_members, layout.n), np.nan, dtype),
+        "q_max": np.full((n_members, layout.n_q), np.nan, dtype),
         "energy_error": np.full(n_members, np.nan, dtype),
         "status": np.full(n_members, NOT_RUN, np.intc),
         "steps_done": np.zeros(n_members, np.int_),

@@ -40,13 +40,14 @@ class EquationsOfMotion:
     t : Symbol
     coordinates, speeds : tuple
         The dynamicsymbols q_i(t) and generalized speeds (qd_i(t), or Kane's u_i(t)).
-    q, u : tuple of Symbol, (n,)
-        Plain symbols standing for ``coordinates`` and ``speeds`` in every expression below.
+    q, u : tuple of Symbol, (n_q,) and (n_u,)
+        Plain symbols standing for ``coordinates`` and ``speeds`` in every expression below
+        (n_u differs from n_q for Kane's speeds such as a quaternion's body rates).
     parameters : tuple of Symbol
     parameter_values : dict Symbol -> float (defaults; may be partial)
-    mass_matrix : ImmutableMatrix, (n, n), symmetric
-    forcing : ImmutableMatrix, (n, 1)
-    kinematics : ImmutableMatrix, (n, 1); qd = kinematics
+    mass_matrix : ImmutableMatrix, (n_u, n_u), symmetric
+    forcing : ImmutableMatrix, (n_u, 1)
+    kinematics : ImmutableMatrix, (n_q, 1); qd = kinematics
     kinetic_energy, potential_energy : Expr or None
     points : tuple of (name, ImmutableMatrix (d, 1))
     constraints : ImmutableMatrix (m, 1)
@@ -107,21 +108,41 @@ class EquationsOfMotion:
         return self.constraints.rows
 
     @property
+    def n_q(self) -> int:
+        """Number of coordinates q."""
+        return len(self.q)
+
+    @property
+    def n_u(self) -> int:
+        """Number of generalized speeds u (the size of M); differs from n_q for Kane's speeds
+        such as a quaternion's body rates (4 coordinates, 3 speeds)."""
+        return len(self.u)
+
+    @property
+    def n_state(self) -> int:
+        """Size of the first-order state x = (q, u)."""
+        return len(self.q) + len(self.u)
+
+    @property
     def n(self) -> int:
+        """The common count of coordinates and speeds; an error when they differ (use n_q, n_u)."""
+        if len(self.q) != len(self.u):
+            raise ValueError(f"model {self.name!r} has {len(self.q)} coordinates and {len(self.u)} speeds: "
+                             "this step needs one speed per coordinate (n_q == n_u)")
         return len(self.q)
 
     @property
     def mass_matrix_full(self) -> sp.ImmutableMatrix:
-        """(2n, 2n) block diag(I, M) of the first-order form in x = (q, u)."""
-        n = self.n
-        full = sp.zeros(2 * n, 2 * n)
-        full[:n, :n] = sp.eye(n)
-        full[n:, n:] = self.mass_matrix
+        """(n_q + n_u, n_q + n_u) block diag(I, M) of the first-order form in x = (q, u)."""
+        n_q, n_u = self.n_q, self.n_u
+        full = sp.zeros(n_q + n_u, n_q + n_u)
+        full[:n_q, :n_q] = sp.eye(n_q)
+        full[n_q:, n_q:] = self.mass_matrix
         return sp.ImmutableMatrix(full)
 
     @property
     def forcing_full(self) -> sp.ImmutableMatrix:
-        """(2n, 1) right-hand side (K; F) of the first-order form."""
+        """(n_q + n_u, 1) right-hand side (K; F) of the first-order form."""
         return sp.ImmutableMatrix.vstack(self.kinematics, self.forcing)
 
     @property
@@ -191,11 +212,15 @@ def lagrange_symbols(model: Model):
     q, u = plain_symbols(coords, speeds, model.parameters)
     return coords, speeds, q, u, make_substitution(coords, speeds, q, u, "model", model.parameters, model.inputs)
 
-def check_mass_matrix(M: sp.Matrix, coords, u) -> None:
-    for j, c in enumerate(coords):
+def check_mass_matrix(M: sp.Matrix, coords, u, speeds=None) -> None:
+    """A zero diagonal entry of M names its coordinate (or, when the speeds are not one per
+    coordinate, its generalized speed among ``speeds``)."""
+    owners = coords if speeds is None or len(speeds) == len(coords) else speeds
+    for j, c in enumerate(owners):
         if M[j, j] == 0:
+            what = "coordinate" if owners is coords else "generalized speed"
             raise ModelError(
-                f"coordinate {c.func.__name__!r} has no inertia: its speed does not appear in the kinetic "
+                f"{what} {_name(c)!r} has no inertia: its speed does not appear in the kinetic "
                 f"energy, so the mass matrix is singular (row {j})")
     speeds = set(u)
     for (j, k), entry in M.todok().items():
@@ -203,6 +228,10 @@ def check_mass_matrix(M: sp.Matrix, coords, u) -> None:
             raise ModelError(
                 f"the kinetic energy is not quadratic in the speeds: M[{j},{k}] depends on "
                 f"{', '.join(sorted(map(str, entry.free_symbols & speeds)))}")
+
+
+def _name(symbol) -> str:
+    return symbol.func.__name__ if symbol.args else str(symbol)  # q1(t) -> "q1"
 
 
 # -- assembly ---------------------------------------------------------------------------------

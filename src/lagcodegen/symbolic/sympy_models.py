@@ -33,14 +33,15 @@ def derive_from_sympy(model: Model):
     to_plain = make_substitution(coords, speeds, q, u, "sympy model", inputs=model.inputs)
     qdot_table = {} if isinstance(method, me.LagrangesMethod) else {
         c.diff(TIME): k for c, k in zip(coords, kin_dynamic)}
-    n = len(coords)
-    M = to_plain(method.mass_matrix[:, :n].xreplace(qdot_table), "mass matrix")  # Lagrange I: without lambda's columns
+    n_u = len(speeds)
+    # Lagrange I: without lambda's columns
+    M = to_plain(method.mass_matrix[:, :n_u].xreplace(qdot_table), "mass matrix")
     F = to_plain(method.forcing.xreplace(qdot_table), "forcing")
     K = to_plain(kin_dynamic, "kinematic equations")
     for what, matrix in (("mass matrix", M), ("forcing", F), ("kinematic equations", K)):
         for (i, j), entry in sorted(matrix.todok().items()):
             check_well_defined(f"the sympy model's {what}, entry ({i}, {j})", entry)
-    check_mass_matrix(M, coords, u)
+    check_mass_matrix(M, coords, u, speeds)
     T, V = _energies(method, model, to_plain)
     constraints, motion = (held, motion) if isinstance(method, me.LagrangesMethod) else ((), ())
     eom = assemble(model, coords, speeds, q, u, M, F, K, T, V, to_plain, constraints=constraints, motion=motion)

@@ -1,0 +1,199 @@
+"""Coordinates and speeds of different counts (n_q != n_u): Kane's kinematic differential
+equations qd = K(q, u) with fewer or more speeds than coordinates.
+
+References, each independent of lagcodegen:
+- the torque-free asymmetric rigid body in Euler parameters (4 coordinates, 3 body rates): Euler's
+  equations I1 w1' = (I2 - I3) w2 w3 (cyclic) and the quaternion kinematics qd = 1/2 Q(q) w, written
+  here by hand in numpy (Kane, Likins and Levinson, Spacecraft Dynamics, sec. 1.13; Goldstein,
+  Classical Mechanics, sec. 5.5); the invariants T = 1/2 sum I_i w_i^2 and the angular momentum in
+  the inertial frame, taken from sympy.mechanics' own ``angular_momentum``;
+- sympy's own ``mass_matrix_full \\ forcing_full`` for the same KanesMethod objects.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import sympy as sp
+import sympy.physics.mechanics as me
+from scipy.integrate import solve_ivp
+
+from lagcodegen import Model, derive_equations
+from lagcodegen.pipeline import compile_model
+from lagcodegen.run.simulate import c_pointer, parameter_vector, simulate, step_jacobians
+from lagcodegen.run.sweep import sweep
+
+pytestmark = pytest.mark.compiler
+
+INERTIA = {"I1": 1.0, "I2": 2.0, "I3": 3.0}
+X0 = [1.0, 0.0, 0.0, 0.0, 0.3, 1.0, 0.2]  # near the unstable middle axis: a tumbling motion
+
+
+def _quaternion_body():
+    """Kane: Euler parameters q0..q3 of B in N, body rates w1..w3 as the speeds."""
+    q0, q1, q2, q3 = me.dynamicsymbols("q0:4")
+    w1, w2, w3 = me.dynamicsymbols("w1:4")
+    I1, I2, I3 = sp.symbols("I1:4")
+    N = me.ReferenceFrame("N")
+    B = N.orientnew("B", "Quaternion", [q0, q1, q2, q3])
+    B.set_ang_vel(N, w1 * B.x + w2 * B.y + w3 * B.z)
+    O = me.Point("O")
+    O.set_vel(N, 0)
+    body = me.RigidBody("body", O, B, 1, (me.inertia(B, I1, I2, I3), O))
+    rates = sp.Matrix([[-q1, -q2, -q3], [q0, -q3, q2], [q3, q0, -q1], [-q2, q1, q0]]) * sp.Matrix([w1, w2, w3]) / 2
+    kd = [c.diff(me.dynamicsymbols._t) - rate for c, rate in zip((q0, q1, q2, q3), rates)]
+    kane = me.KanesMethod(N, q_ind=[q0, q1, q2, q3], u_ind=[w1, w2, w3], kd_eqs=kd)
+    kane.kanes_equations([body], [])
+    momentum = body.angular_momentum(O, N)
+    H = sp.lambdify([q0, q1, q2, q3, w1, w2, w3, I1, I2, I3],
+                    [momentum.dot(N.x), momentum.dot(N.y), momentum.dot(N.z)])
+    return kane, N, (I1, I2, I3), H
+
+
+@pytest.fixture(scope="module")
+def body():
+    kane, frame, inertias, H = _quaternion_body()
+    model = Model("quaternion_body", parameters=list(inertias), sympy_model=kane, frame=frame)
+    system = compile_model(model, outputs=["rhs", "energy", "jacobian", "step_jacobian"], methods=["rk4", "euler"])
+    return kane, model, system, H
+
+
+def _euler_rhs(t, x, I1=1.0, I2=2.0, I3=3.0):
+    """Hand-written: quaternion kinematics and Euler's equations of the torque-free body."""
+    q0, q1, q2, q3, w1, w2, w3 = x
+    return [(-q1 * w1 - q2 * w2 - q3 * w3) / 2, (q0 * w1 - q3 * w2 + q2 * w3) / 2,
+            (q3 * w1 + q0 * w2 - q1 * w3) / 2, (-q2 * w1 + q1 * w2 + q0 * w3) / 2,
+            (I2 - I3) * w2 * w3 / I1, (I3 - I1) * w3 * w1 / I2, (I1 - I2) * w1 * w2 / I3]
+
+
+def _rhs(system, x, params):
+    """The compiled <prefix>_rhs at t = 0."""
+    x = np.asarray(x, dtype=float)
+    xdot = np.empty_like(x)
+    p = parameter_vector(system, params)
+    code = getattr(system.lib, f"{system.layout.prefix}_rhs")(0.0, c_pointer(system, x), c_pointer(system, p),
+                                                                c_pointer(system, xdot))
+    assert code == 0
+    return xdot
+
+
+def test_four_coordinates_three_speeds_are_derived_as_sympy_gives_them(body):
+    kane, model, system, _ = body
+    eom = derive_equations(model)
+    assert (eom.n_q, eom.n_u, eom.n_state) == (4, 3, 7)
+    assert eom.mass_matrix.shape == (3, 3) and eom.kinematics.shape == (4, 1)
+    with pytest.raises(ValueError, match="4 coordinates and 3 speeds"):
+        _ = eom.n
+    assert system.layout.coordinates == ("q0", "q1", "q2", "q3") and system.layout.speeds == ("w1", "w2", "w3")
+
+
+def test_header_states_the_counts_of_coordinates_and_speeds(body):
+    header = body[2].sources.header
+    assert "#define LCG_QUATERNION_BODY_N 4\n" in header
+    assert "#define LCG_QUATERNION_BODY_N_SPEEDS 3\n" in header
+    assert "#define LCG_QUATERNION_BODY_N_STATE 7\n" in header
+    assert "x[4] = w1 (speed)" in header and "x[3] = q3 (coordinate)" in header
+
+
+def test_rhs_equals_sympy_and_euler_equations(body):
+    kane, _, system, _ = body
+    q, u = list(kane.q), list(kane.u)
+    I = sp.symbols("I1:4")
+    sympy_rhs = sp.lambdify(q + u + list(I), kane.mass_matrix_full.LUsolve(kane.forcing_full))
+    rng = np.random.default_rng(14)
+    for _ in range(3):
+        quaternion = rng.normal(size=4)
+        x = np.concatenate([quaternion / np.linalg.norm(quaternion), rng.normal(size=3)])
+        inertias = rng.uniform(0.5, 3.0, 3)
+        ours = _rhs(system, x, dict(zip(("I1", "I2", "I3"), inertias)))
+        np.testing.assert_allclose(ours, np.ravel(sympy_rhs(*x, *inertias)), rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(ours, _euler_rhs(0.0, x, *inertias), rtol=1e-12, atol=1e-12)
+
+
+def test_rk4_follows_dop853_on_the_hand_written_equations(body):
+    system = body[2]
+    run = simulate(system, X0, 1.0, 1e-3, params=INERTIA)
+    reference = solve_ivp(_euler_rhs, (0.0, 1.0), X0, method="DOP853", rtol=1e-12, atol=1e-12)
+    assert run.ok
+    np.testing.assert_allclose(run.x[-1], reference.y[:, -1], rtol=0, atol=1e-11)
+
+
+def test_energy_momentum_and_unit_norm_are_kept_to_fourth_order(body):
+    *_, system, H = body
+    drift = {}
+    for h in (0.02, 0.01):
+        run = simulate(system, X0, 20.0, h, params=INERTIA, energy=True)
+        assert run.ok
+        x = run.x
+        momentum = np.array(H(*x.T, 1.0, 2.0, 3.0)).T
+        drift[h] = (np.abs(run.energy - run.energy[0]).max(),
+                    np.linalg.norm(momentum - momentum[0], axis=1).max(),
+                    np.abs(np.linalg.norm(x[:, :4], axis=1) - 1.0).max())
+    for coarse, fine in zip(drift[0.02], drift[0.01]):
+        assert fine < 1e-6
+        assert 12.0 < coarse / fine < 20.0  # RK4: error ~ h^4, ratio 16 when h is halved
+
+
+def test_step_jacobian_equals_finite_differences_of_the_step(body):
+    system = body[2]
+    x = np.array(X0[:4] + [0.5, -0.4, 0.9])
+    _, Fx, _ = step_jacobians(system, x, parameter_vector(system, INERTIA), 0.01, method="rk4")
+    assert Fx.shape == (7, 7)
+    eps = 1e-6
+    for c in range(7):
+        up, down = x.copy(), x.copy()
+        up[c] += eps
+        down[c] -= eps
+        column = (simulate(system, up, 0.01, 0.01, params=INERTIA).x[-1]
+                  - simulate(system, down, 0.01, 0.01, params=INERTIA).x[-1]) / (2 * eps)
+        np.testing.assert_allclose(Fx[:, c], column, atol=1e-8)
+
+
+def test_sweep_lanes_and_scalar_agree_with_simulate(body):
+    system = body[2]
+    grid = {"I2": np.linspace(1.5, 2.5, 5)}
+    results = {kernel: sweep(system, grid, x0=X0, t_end=0.5, h=1e-3, params=INERTIA, kernel=kernel)
+               for kernel in ("scalar", "lanes")}
+    np.testing.assert_array_equal(results["scalar"].x_final, results["lanes"].x_final)
+    for i, I2 in enumerate(grid["I2"]):
+        alone = simulate(system, X0, 0.5, 1e-3, params={**INERTIA, "I2": I2})
+        np.testing.assert_array_equal(results["scalar"].x_final[i], alone.x[-1])
+        np.testing.assert_array_equal(results["scalar"].q_max[i], np.abs(alone.x[:, :4]).max(axis=0))
+
+
+def _disc_with_contact_speeds():
+    """sympy's rolling-disc frame (test_kane2) with the contact point's velocity as two more
+    speeds u4, u5 and no coordinates for its position (ignorable): 3 coordinates, 5 speeds."""
+    q1, q2, q3, u1, u2, u3, u4, u5 = me.dynamicsymbols("q1 q2 q3 u1 u2 u3 u4 u5")
+    r, m, g = sp.symbols("r m g")
+    N = me.ReferenceFrame("N")
+    Y = N.orientnew("Y", "Axis", [q1, N.z])
+    L = Y.orientnew("L", "Axis", [q2, Y.x])
+    R = L.orientnew("R", "Axis", [q3, L.y])
+    w_R_N_qd = R.ang_vel_in(N)
+    R.set_ang_vel(N, u1 * L.x + u2 * L.y + u3 * L.z)
+    C = me.Point("C")
+    C.set_vel(N, u4 * L.x + u5 * (Y.z ^ L.x))
+    Dmc = C.locatenew("Dmc", r * L.z)
+    Dmc.v2pt_theory(C, N, R)
+    inertia = me.inertia(L, m / 4 * r ** 2, m / 2 * r ** 2, m / 4 * r ** 2)
+    kd = [me.dot(R.ang_vel_in(N) - w_R_N_qd, uv) for uv in L]
+    disk = me.RigidBody("disk", Dmc, R, m, (inertia, Dmc))
+    kane = me.KanesMethod(N, q_ind=[q1, q2, q3], u_ind=[u1, u2, u3, u4, u5], kd_eqs=kd)
+    kane.kanes_equations([disk], [(Dmc, -m * g * Y.z)])
+    return kane, (r, m, g)
+
+
+def test_more_speeds_than_coordinates_match_sympy():
+    # This model used to be refused (and before that, silently wrong: a leading 3x3 block of M).
+    kane, params = _disc_with_contact_speeds()
+    system = compile_model(Model("sliding_disc", parameters=list(params), sympy_model=kane),
+                           outputs=["rhs"], methods=["rk4"])
+    assert (system.layout.n_q, system.layout.n_u) == (3, 5)
+    sympy_rhs = sp.lambdify(list(kane.q) + list(kane.u) + list(params),
+                            kane.mass_matrix_full.LUsolve(kane.forcing_full))
+    rng = np.random.default_rng(5)
+    for _ in range(3):
+        x = np.concatenate([rng.uniform(-1.0, 1.0, 3), rng.normal(size=5)])
+        values = {"r": 0.3, "m": 2.0, "g": 9.81}
+        np.testing.assert_allclose(_rhs(system, x, values), np.ravel(sympy_rhs(*x, *values.values())),
+                                   rtol=1e-11, atol=1e-11)
