@@ -110,6 +110,18 @@ class ToolchainSkipGuard:
                 terminalreporter.line(f"SKIPPED (fails the session: CI is set) {line}", red=True)
 
 
+@pytest.fixture(scope="session")
+def ctest_summary():
+    """(percent passed, failed, total) from ctest's output, or None: ctest 3.x prints "100% tests
+    passed, 0 tests failed out of N", 4.x (the cmake wheel FMPy pulls in) leaves out a zero count."""
+    import re
+
+    def parse(stdout: str):
+        found = re.search(r"(\d+)% tests passed(?:, (\d+) tests failed)? out of (\d+)", stdout)
+        return None if found is None else (found.group(1), found.group(2) or "0", found.group(3))
+    return parse
+
+
 def pytest_configure(config):
     config.pluginmanager.register(ToolchainSkipGuard(), "lagcodegen-toolchain-skip-guard")
 

@@ -102,9 +102,17 @@ def specified_functions(method) -> list:
     t = me.dynamicsymbols._t
     q = list(method.q)
     u = list(getattr(method, "u", [])) or [c.diff(t) for c in q]
-    known = set(q) | set(u) | {c.diff(t) for c in q} | {s.diff(t) for s in u}
+    known = set(q) | set(u) | {c.diff(t) for c in q} | {s.diff(t) for s in u} | set(auxiliary_zeros(method))
     found = me.find_dynamicsymbols(method.forcing) | me.find_dynamicsymbols(method.mass_matrix)
     return sorted(found - known, key=str)
+
+
+def auxiliary_zeros(method) -> dict:
+    """Kane's auxiliary speeds and their rates, zero in the equations of motion (sympy sets them to
+    zero in ``rhs``; they only serve ``auxiliary_eqs``)."""
+    t = me.dynamicsymbols._t
+    aux = list(getattr(method, "_uaux", []))  # private: sympy 1.14 keeps them only there
+    return {a: 0 for a in aux} | {a.diff(t): 0 for a in aux}
 
 
 def check(record: Recorded, index: int, cache_dir, trajectories: bool = True) -> dict:
@@ -142,7 +150,8 @@ def check(record: Recorded, index: int, cache_dir, trajectories: bool = True) ->
             values = {p: rng.uniform(0.5, 2.0) for p in parameters}
             state = [rng.uniform(-1, 1) for _ in range(len(method.q) + len(speeds))]
             r = [rng.uniform(-1, 1) for _ in inputs]
-            at = dict(zip(list(method.q) + speeds, state)) | dict(zip(inputs, r)) | values | {t: 0.3}
+            at = dict(zip(list(method.q) + speeds, state)) | dict(zip(inputs, r)) | values | {t: 0.3} | \
+                auxiliary_zeros(method)
             at |= {c.diff(t): v for c, v in zip(method.q, state[len(method.q):])} if not getattr(method, "u", None) \
                 else {}
             reference = np.array(full_M.xreplace(at).evalf().LUsolve(full_F.xreplace(at).evalf()).evalf(),
@@ -191,7 +200,7 @@ def trajectory_error(system, method, values, inputs, rng) -> float:
     state = [rng.uniform(-0.5, 0.5) for _ in range(len(method.q) + len(speeds))]
     r = [rng.uniform(-1, 1) for _ in inputs]
     plain = sp.symbols(f"x0:{len(state)}")
-    table = dict(zip(list(method.q) + speeds, plain)) | dict(zip(inputs, r)) | values
+    table = dict(zip(list(method.q) + speeds, plain)) | dict(zip(inputs, r)) | values | auxiliary_zeros(method)
     if not getattr(method, "u", None):
         table |= {c.diff(t): s for c, s in zip(method.q, plain[len(method.q):])}
     M = sp.lambdify([plain, t], method.mass_matrix_full.xreplace(table), "numpy")

@@ -496,30 +496,7 @@ def _sympy_model_coordinates(obj: Any) -> list:
         if obj.method is None:
             obj.form_eoms()
         return _sympy_model_coordinates(obj.method)
-    if isinstance(obj, me.System):
-        _check_speeds(type(obj).__name__, obj.q_ind, obj.q_dep, obj.u_ind, obj.u_dep, obj.u_aux)
-        return list(obj.q)
-    if isinstance(obj, me.LagrangesMethod):
-        return list(obj.q)
-    if isinstance(obj, me.KanesMethod):
-        # sympy keeps the split of the speeds in private attributes only (sympy 1.14)
-        _check_speeds(type(obj).__name__, obj._qdep and obj.q[:len(obj.q) - len(obj._qdep)] or obj.q,
-                      obj._qdep, obj.u[:len(obj.u) - len(obj._udep)], obj._udep, obj._uaux)
-        return list(obj.q)
+    if isinstance(obj, (me.System, me.LagrangesMethod, me.KanesMethod)):
+        return list(obj.q)  # every count of coordinates and speeds (symbolic/sympy_models.py)
     raise ModelError(f"sympy_model must be a LagrangesMethod, KanesMethod, System or JointsMethod, got "
                      f"{type(obj).__name__}")
-
-
-def _check_speeds(kind: str, q_ind, q_dep, u_ind, u_dep, u_aux) -> None:
-    """Independent coordinates and speeds only (their counts may differ: Kane's kinematic
-    differential equations give every qd, e.g. a quaternion's four rates from three body rates)."""
-    names = lambda symbols: ", ".join(map(str, symbols)) or "none"  # noqa: E731
-    unsupported = "velocity constraints and auxiliary speeds are not supported yet"
-    if len(q_dep):
-        raise ModelError(f"{kind} has dependent coordinates ({names(q_dep)}): configuration constraints "
-                         f"are not supported in sympy models yet; give the model in independent "
-                         f"coordinates, or state it with Model(constraints=...)")
-    if len(u_dep):
-        raise ModelError(f"{kind} has dependent speeds ({names(u_dep)}): {unsupported}")
-    if len(u_aux):
-        raise ModelError(f"{kind} has auxiliary speeds ({names(u_aux)}): {unsupported}")

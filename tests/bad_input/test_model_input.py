@@ -131,54 +131,6 @@ def test_acceleration_in_a_load_is_refused():
 
 
 # -- sympy models whose speeds do not match their coordinates ------------------------------------
-def _rolling_disk_kane(auxiliary=False):
-    """sympy's own test model (sympy/physics/mechanics/tests/test_kane.py, test_aux): a disk on
-    the ground with 3 coordinates and the contact point's 2 speeds, either as extra independent
-    speeds (KM: 3 q, 5 u) or as auxiliary speeds (KM2)."""
-    q1, q2, q3, u1, u2, u3 = me.dynamicsymbols("q1 q2 q3 u1 u2 u3")
-    u4, u5 = me.dynamicsymbols("u4 u5")
-    N = me.ReferenceFrame("N")
-    Y = N.orientnew("Y", "Axis", [q1, N.z])
-    L = Y.orientnew("L", "Axis", [q2, Y.x])
-    R = L.orientnew("R", "Axis", [q3, L.y])
-    w_R_N_qd = R.ang_vel_in(N)
-    R.set_ang_vel(N, u1 * L.x + u2 * L.y + u3 * L.z)
-    C = me.Point("C")
-    C.set_vel(N, u4 * L.x + u5 * (Y.z ^ L.x))
-    Dmc = C.locatenew("Dmc", r * L.z)
-    Dmc.v2pt_theory(C, N, R)
-    inertia = me.inertia(L, m / 4 * r ** 2, m / 2 * r ** 2, m / 4 * r ** 2)
-    kd = [me.dot(R.ang_vel_in(N) - w_R_N_qd, uv) for uv in L]
-    disk = me.RigidBody("disk", Dmc, R, m, (inertia, Dmc))
-    method = me.KanesMethod(N, q_ind=[q1, q2, q3], u_ind=[u1, u2, u3], kd_eqs=kd,
-                            u_auxiliary=[u4, u5] if auxiliary else [])
-    method.kanes_equations([disk], [(Dmc, -m * g * Y.z)])
-    return method
-
-
-def test_kane_with_auxiliary_speeds_is_refused():
-    with raises_naming("auxiliary speeds", "u4(t), u5(t)", "not supported"):
-        Model("km2", parameters=[r, m, g], sympy_model=_rolling_disk_kane(auxiliary=True))
-
-
-def test_kane_with_dependent_speeds_is_refused():
-    # A wheel rolling on a line that keeps its angle: theta' = -x'/r, one independent speed for
-    # two coordinates. It used to crash with IndexError.
-    xw, theta, ux, utheta = me.dynamicsymbols("x_w theta u_x u_theta")
-    N = me.ReferenceFrame("N")
-    W = N.orientnew("W", "Axis", [theta, N.z])
-    W.set_ang_vel(N, utheta * N.z)
-    P = me.Point("P")
-    P.set_vel(N, ux * N.x)
-    wheel = me.RigidBody("wheel", P, W, m, (me.inertia(W, 1, 1, m * r ** 2 / 2), P))
-    method = me.KanesMethod(N, q_ind=[xw, theta], u_ind=[ux], u_dependent=[utheta],
-                            kd_eqs=[xw.diff(t) - ux, theta.diff(t) - utheta],
-                            velocity_constraints=[utheta + ux / r])
-    method.kanes_equations([wheel], [])
-    with raises_naming("dependent speeds", "u_theta(t)", "not supported"):
-        Model("wheel", parameters=[r, m], sympy_model=method)
-
-
 def test_lagranges_method_with_nan_lagrangian_is_refused():
     L = T_x - V_x + sp.nan * x
     method = me.LagrangesMethod(L, [x])

@@ -160,9 +160,10 @@ def test_sweep_lanes_and_scalar_agree_with_simulate(body):
         np.testing.assert_array_equal(results["scalar"].q_max[i], np.abs(alone.x[:, :4]).max(axis=0))
 
 
-def _disc_with_contact_speeds():
+def _disc_with_contact_speeds(auxiliary=False):
     """sympy's rolling-disc frame (test_kane2) with the contact point's velocity as two more
-    speeds u4, u5 and no coordinates for its position (ignorable): 3 coordinates, 5 speeds."""
+    speeds u4, u5 and no coordinates for its position (ignorable): 3 coordinates, 5 speeds
+    (``auxiliary``: u4, u5 as Kane's auxiliary speeds instead)."""
     q1, q2, q3, u1, u2, u3, u4, u5 = me.dynamicsymbols("q1 q2 q3 u1 u2 u3 u4 u5")
     r, m, g = sp.symbols("r m g")
     N = me.ReferenceFrame("N")
@@ -178,7 +179,10 @@ def _disc_with_contact_speeds():
     inertia = me.inertia(L, m / 4 * r ** 2, m / 2 * r ** 2, m / 4 * r ** 2)
     kd = [me.dot(R.ang_vel_in(N) - w_R_N_qd, uv) for uv in L]
     disk = me.RigidBody("disk", Dmc, R, m, (inertia, Dmc))
-    kane = me.KanesMethod(N, q_ind=[q1, q2, q3], u_ind=[u1, u2, u3, u4, u5], kd_eqs=kd)
+    if auxiliary:
+        kane = me.KanesMethod(N, q_ind=[q1, q2, q3], u_ind=[u1, u2, u3], kd_eqs=kd, u_auxiliary=[u4, u5])
+    else:
+        kane = me.KanesMethod(N, q_ind=[q1, q2, q3], u_ind=[u1, u2, u3, u4, u5], kd_eqs=kd)
     kane.kanes_equations([disk], [(Dmc, -m * g * Y.z)])
     return kane, (r, m, g)
 
@@ -197,3 +201,35 @@ def test_more_speeds_than_coordinates_match_sympy():
         values = {"r": 0.3, "m": 2.0, "g": 9.81}
         np.testing.assert_allclose(_rhs(system, x, values), np.ravel(sympy_rhs(*x, *values.values())),
                                    rtol=1e-11, atol=1e-11)
+
+
+def test_auxiliary_speeds_stay_out_of_the_state():
+    # They serve sympy's auxiliary_eqs (reaction forces) and are zero in its rhs; this model was refused.
+    kane, params = _disc_with_contact_speeds(auxiliary=True)
+    model = Model("disc_aux", parameters=list(params), sympy_model=kane)
+    eom = derive_equations(model)
+    assert [str(s) for s in eom.speeds] == ["u1(t)", "u2(t)", "u3(t)"]
+    assert not {str(s) for s in eom.forcing.free_symbols} & {"u4", "u5"}
+
+
+def test_wheel_with_a_dependent_speed_rolls_as_by_hand():
+    """A wheel rolling on a line (theta' = -x'/r) pushed by a constant force F at its hub: by hand,
+    x'' = F / (m + I / r^2) = 2 F / (3 m) for I = m r^2 / 2, theta = -x / r. It was refused."""
+    t = me.dynamicsymbols._t
+    xw, theta, ux, utheta = me.dynamicsymbols("x_w theta u_x u_theta")
+    m, r, F = sp.symbols("m r F", positive=True)
+    N = me.ReferenceFrame("N")
+    W = N.orientnew("W", "Axis", [theta, N.z])
+    W.set_ang_vel(N, utheta * N.z)
+    P = me.Point("P")
+    P.set_vel(N, ux * N.x)
+    wheel = me.RigidBody("wheel", P, W, m, (me.inertia(W, 1, 1, m * r ** 2 / 2), P))
+    kane = me.KanesMethod(N, q_ind=[xw, theta], u_ind=[ux], u_dependent=[utheta],
+                          kd_eqs=[xw.diff(t) - ux, theta.diff(t) - utheta], velocity_constraints=[utheta + ux / r])
+    kane.kanes_equations([wheel], [(P, F * N.x)])
+    system = compile_model(Model("wheel", parameters=[m, r, F], sympy_model=kane), outputs=["rhs"], methods=["rk4"])
+    values = {"m": 2.0, "r": 0.5, "F": 3.0}
+    run = simulate(system, [0.0, 0.0, 1.0, -2.0], 2.0, 1e-3, params=values)
+    a = 2 * 3.0 / (3 * 2.0)
+    x_end, v_end = 1.0 * 2.0 + a * 2.0 ** 2 / 2, 1.0 + a * 2.0
+    np.testing.assert_allclose(run.x[-1], [x_end, -x_end / 0.5, v_end, -v_end / 0.5], rtol=1e-12, atol=1e-12)

@@ -269,8 +269,9 @@ def assemble(model, coords, speeds, q, u, M, F, K, T, V, to_plain, inputs_checke
     route = ROUTE_TITLES.get(model.route, model.route)
     parameters, values, constrained = tuple(model.parameters), dict(model.parameter_values), {}
     if constraints or motion:
-        if list(K) != list(u):
-            raise ModelError("constraints need generalized speeds equal to the coordinate rates")
+        if constraints and list(K) != list(u):
+            raise ModelError("holonomic constraints need generalized speeds equal to the coordinate rates; "
+                             "with Kane's speeds state them as velocity constraints")
         phi = sp.Matrix([to_plain(c, f"constraint {i}") for i, c in enumerate(constraints)])
         check_declared([(f"constraint {i}", c) for i, c in enumerate(phi)], model.parameters, (), extra=q + u + r)
         w = sp.Matrix([to_plain(c, f"motion constraint {i}") for i, c in enumerate(motion)])
@@ -289,7 +290,7 @@ def assemble(model, coords, speeds, q, u, M, F, K, T, V, to_plain, inputs_checke
         if phi.rows:
             blocks.append(dict(holonomic_terms(phi, q, u, TIME), phi=phi))
         if w.rows:
-            blocks.append(motion_terms(w, q, u, TIME))
+            blocks.append(motion_terms(w, q, u, TIME, K))
         stack = lambda key: sp.ImmutableMatrix(sp.Matrix.vstack(*[sp.Matrix(b[key]) for b in blocks]))  # noqa: E731
         constrained = {"constraints": stack("phi"), "constraint_jacobian": stack("A"),
                        "constraint_rate": stack("phi_t"), "constraint_bias": stack("gamma"),

@@ -2,7 +2,14 @@
 
 sympy has already derived ``M ud = F`` for these objects; this route renames their
 dynamicsymbols to plain symbols and takes the kinematic equations from Kane's
-``kindiffdict`` (qd = K(q, u, t)), so Kane's generalized speeds pass through unchanged.
+``kindiffdict`` (qd = K(q, u, t)), so Kane's generalized speeds pass through unchanged, in any
+number (a quaternion's four rates from three body rates).
+
+Kane's dependent speeds: the unreduced equations of every speed with the velocity constraints
+A u + b = 0 as multipliers (`_every_speed_independent`). Dependent coordinates are integrated with
+the others; their configuration constraints act through the velocity constraints, as in sympy's
+own ``rhs``. Auxiliary speeds stay out of the state, as sympy leaves them out of ``rhs``: they
+serve its ``auxiliary_eqs`` for reaction forces, which the multipliers give here.
 """
 from __future__ import annotations
 
@@ -16,6 +23,7 @@ from .equations import assemble, check_mass_matrix, make_substitution, plain_sym
 def derive_from_sympy(model: Model):
     method = _formed_method(model.sympy_model)
     coords = tuple(method.q)
+    auxiliary = tuple(getattr(method, "_uaux", ()))  # private: sympy 1.14 keeps Kane's auxiliary speeds there
     if isinstance(method, me.LagrangesMethod):
         # private: sympy 1.14 keeps the Lagrangian only in _L
         check_well_defined("the sympy model's Lagrangian", sp.sympify(method._L))
@@ -29,8 +37,16 @@ def derive_from_sympy(model: Model):
         kindiff = method.kindiffdict()
         kin_dynamic = sp.Matrix([kindiff[c.diff(TIME)] for c in coords])
         route = "sympy KanesMethod (Kane)"
+        motion = []
+        if len(method._udep):  # private: sympy 1.14 keeps the split of the speeds only there
+            motion = list(method._k_nh * sp.Matrix(method.u) + method._f_nh)
+            method = _every_speed_independent(method, kindiff)
     q, u = plain_symbols(coords, speeds, model.parameters)
-    to_plain = make_substitution(coords, speeds, q, u, "sympy model", inputs=model.inputs)
+    renamed = make_substitution(coords, speeds, q, u, "sympy model", inputs=model.inputs)
+    zero = {a: 0 for a in auxiliary} | {a.diff(TIME): 0 for a in auxiliary}
+
+    def to_plain(expr, what):  # auxiliary speeds are zero in the equations of motion
+        return renamed(sp.sympify(expr).xreplace(zero) if zero and expr is not None else expr, what)
     qdot_table = {} if isinstance(method, me.LagrangesMethod) else {
         c.diff(TIME): k for c, k in zip(coords, kin_dynamic)}
     n_u = len(speeds)
@@ -41,15 +57,48 @@ def derive_from_sympy(model: Model):
     for what, matrix in (("mass matrix", M), ("forcing", F), ("kinematic equations", K)):
         for (i, j), entry in sorted(matrix.todok().items()):
             check_well_defined(f"the sympy model's {what}, entry ({i}, {j})", entry)
-    check_mass_matrix(M, coords, u, speeds)
     T, V = _energies(method, model, to_plain)
-    constraints, motion = (held, motion) if isinstance(method, me.LagrangesMethod) else ((), ())
+    constraints = held if isinstance(method, me.LagrangesMethod) else ()
+    if not motion:
+        check_mass_matrix(M, coords, u, speeds)
     eom = assemble(model, coords, speeds, q, u, M, F, K, T, V, to_plain, constraints=constraints, motion=motion)
+    if motion:
+        eom = _massless_speeds_regularized(eom)
+        check_mass_matrix(eom.mass_matrix, coords, u, speeds)
     if eom.m:  # assemble's " with ... constraints (Lagrange I)"
         route += eom.route[eom.route.index(" with "):]
     elif isinstance(method, me.LagrangesMethod):
         route += " (Lagrange II)"
     return _with_route(eom, route)
+
+
+def _every_speed_independent(method, kindiff):
+    """The KanesMethod of the same bodies, loads and kinematic equations with every speed
+    independent: its M (n_u x n_u, symmetric) and F are the unreduced Kane equations, to which the
+    velocity constraints A u + b = 0 return as multipliers, M ud = F - A^T lam (the reduced
+    equations sympy forms are their projection onto the independent speeds, so both agree)."""
+    kd = [c.diff(TIME) - kindiff[c.diff(TIME)] for c in method.q]
+    unreduced = me.KanesMethod(method._inertial, q_ind=list(method.q), u_ind=list(method.u), kd_eqs=kd,
+                               bodies=method.bodies, forcelist=method.loads)
+    unreduced.kanes_equations(method.bodies, method.loads)
+    return unreduced
+
+
+def _massless_speeds_regularized(eom):
+    """Unreduced Kane equations whose M is singular because a dependent speed carries no mass (a
+    contact point's velocity): M + A^T A and F + A^T gamma in their place. The constrained solution
+    is the same, since A ud = gamma gives A^T A ud = A^T gamma, and M + A^T A is positive definite
+    whenever M is on the null space of A (the reduced mass matrix sympy inverts)."""
+    from dataclasses import replace
+
+    M, A = eom.mass_matrix, eom.constraint_jacobian
+    massless = [j for j in range(M.rows) if M[j, j] == 0 and any(A[i, j] != 0 for i in range(A.rows))]
+    if not massless:
+        return eom
+    return replace(eom, mass_matrix=sp.ImmutableMatrix(M + A.T * A),
+                   forcing=sp.ImmutableMatrix(eom.forcing + A.T * eom.constraint_bias),
+                   route=eom.route + f" (massless dependent speeds {', '.join(str(eom.u[j]) for j in massless)}: "
+                                     "M + A^T A, F + A^T gamma)")
 
 
 def _formed_method(obj):
