@@ -117,7 +117,9 @@ def animate(trajectory: Trajectory, out=None, *, points: Sequence[str] | None = 
     ----------
     trajectory : Trajectory
         Simulated with ``points=True`` (and ``energy=True`` for the energy overlay);
-        ``points (n_samples, n_points, 3)`` named by ``point_names``.
+        ``points (n_samples, n_points, 3)`` named by ``point_names``. Each frame shows the sample
+        nearest its time, so keep samples at least as often as frames (``stride * h <= speed / fps``)
+        for even motion; a run that stopped early is animated up to where it stopped.
     out : str or Path, optional
         ``*.gif`` (Pillow) or ``*.mp4`` (ffmpeg; `AnimationError` when it is missing). Checked
         before anything is drawn.
