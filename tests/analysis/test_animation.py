@@ -303,6 +303,7 @@ def test_cli_writes_a_gif(tmp_path, capsys):
     (["double_pendulum", "--x0", "q1=1,q2=0", "--trace", "bob3"], "--trace: no point 'bob3'; points: bob1, bob2"),
     (["double_pendulum", "--x0", "q1=1,q2=0", "--links", "bob1"], "--links 'bob1' must look like a-b"),
     (["double_pendulum", "--x0", "q1=1,q2=0", "--projection", "1,b"], "--projection '1,b'"),
+    (["double_pendulum", "--x0", "q1=1,q2=0", "--projection", "xq"], "--projection 'xq' must be two different"),
 ])
 def test_cli_bad_input_is_one_line_naming_it(argv, culprit, tmp_path, capsys):
     code = main(["animate", *argv, "--t-end", "0.1", "--out", str(tmp_path / "s.gif")])

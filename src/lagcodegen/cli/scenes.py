@@ -59,11 +59,13 @@ def parse_projection(text: str | None):
     return elevation, azimuth
 
 
-def cmd_animate(args) -> int:
-    from ..analysis.animation import animate, check_output
-    from ..analysis.scenes import AnimationError, scene_names
-    from ..run.inputs import InputError
-    from ..run.simulate import simulate
+def animation_request(args) -> tuple:
+    """(model, out path, animate's keyword arguments) of ``lagcodegen animate``, every name and
+    value checked before anything is compiled."""
+    import numpy as np
+
+    from ..analysis.animation import check_output
+    from ..analysis.scenes import AnimationError, project, scene_names
 
     try:
         target = check_output(args.out, "--out")
@@ -73,14 +75,25 @@ def cmd_animate(args) -> int:
     if not model.points:
         raise UsageError(f"model {model.name!r} has no named points to animate; give it some, "
                          "Model(..., points={name: position})")
-    links = parse_links(args.links) or model.links or None
-    chosen = None if args.points is None else [name.strip() for name in args.points.split(",")]
-    trace = [] if args.trace is None else [name.strip() for name in args.trace.split(",")]
-    try:  # every name checked before anything is compiled
-        scene_names(tuple(model.points), chosen, links, trace, prefix="--")
+    request = {"points": None if args.points is None else [name.strip() for name in args.points.split(",")],
+               "links": parse_links(args.links) or model.links or None,
+               "trace": [] if args.trace is None else [name.strip() for name in args.trace.split(",")],
+               "projection": parse_projection(args.projection), "fps": args.fps, "speed": args.speed}
+    try:
+        scene_names(tuple(model.points), request["points"], request["links"], request["trace"], prefix="--")
+        project(np.zeros(3), request["projection"])
     except AnimationError as error:
-        raise UsageError(str(error)) from None
-    projection = parse_projection(args.projection)
+        message = str(error)
+        raise UsageError(message if message.startswith("--") else f"--{message}") from None
+    return model, target, request
+
+
+def cmd_animate(args) -> int:
+    from ..analysis.animation import animate
+    from ..run.inputs import InputError
+    from ..run.simulate import simulate
+
+    model, target, request = animation_request(args)
     eom, fixed, params, x0 = prepare_run(args, "animate", model=model)
     check_steps(args, 2 * eom.n + 1 + 3 * len(eom.points))
     energy = eom.energy is not None
@@ -92,9 +105,7 @@ def cmd_animate(args) -> int:
     except InputError as error:
         raise UsageError(f"--input: {error}") from None
     print(f"{eom.name}, {run.method}, h = {args.h:g} to t = {args.t_end:g}: {run.message}")
-    title = f"{eom.name} ({run.method}, h = {args.h:g})"
-    animate(run, target, points=chosen, links=links, trace=trace, fps=args.fps, speed=args.speed,
-            projection=projection, title=title)
+    animate(run, target, title=f"{eom.name} ({run.method}, h = {args.h:g})", **request)
     print(f"wrote {target} ({run.t[-1] - run.t[0]:g} s simulated, {args.speed:g}x real time)")
     return EXIT_OK if run.ok else EXIT_FAILED
 
@@ -117,5 +128,5 @@ def add_animate_parser(commands) -> None:
                          help="simulated seconds per second of playback (default: 1, real time)")
     animate.add_argument("--projection", metavar="xy|xz|zy|ELEV,AZIM",
                          help="screen plane of 3-D models: two axes, or a view by elevation and azimuth in "
-                              "degrees (default: xy)")
+                              "degrees (default: xy; a negative elevation as --projection=-20,30)")
     animate.set_defaults(run=cmd_animate)
