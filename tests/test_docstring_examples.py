@@ -10,12 +10,13 @@ import doctest
 import pytest
 
 from lagcodegen import Model, derive_equations
+from lagcodegen.analysis.animation import animate
 from lagcodegen.pipeline import compile_model
 from lagcodegen.run.simulate import simulate
 from lagcodegen.run.sweep import sweep
 from lagcodegen.statics.equilibria import find_equilibria, linearize
 
-ENTRY_POINTS = [Model, derive_equations, compile_model, simulate, sweep, find_equilibria, linearize]
+ENTRY_POINTS = [Model, derive_equations, compile_model, simulate, sweep, find_equilibria, linearize, animate]
 
 
 @pytest.mark.parametrize("entry", ENTRY_POINTS, ids=lambda e: e.__name__)

@@ -121,19 +121,27 @@ def bar_on_rollers() -> Model:
 def centrifugal_governor(route: str = "bodies") -> Model:
     """A centrifugal governor spun at constant omega about the vertical: two balls (weight P each)
     on weightless rods of length l hinged on the axis, and a sleeve (weight Q) on the axis joined to
-    the balls by rods of length l; alpha is the rods' angle from the vertical. Rheonomic."""
+    the balls by rods of length l; alpha is the rods' angle from the vertical. Rheonomic.
+
+    Named points (y up, the axis through the hinge at the origin): ``ball_1``, ``ball_2`` at
+    (+-l sin(alpha) cos(omega t), -l cos(alpha), -+l sin(alpha) sin(omega t)) and ``sleeve`` at
+    (0, -2 l cos(alpha), 0), joined by the four rods (``links``)."""
     _check_route(route)
     P, Q, l, g, omega = sp.symbols("P Q l g omega", positive=True)
     alpha = me.dynamicsymbols("alpha")
     params = (P, Q, l, g, omega)
     values = {P: 10.0, Q: 20.0, l: 0.5, g: 9.81, omega: 10.0}
+    links = (("origin", "ball_1"), ("ball_1", "sleeve"), ("sleeve", "ball_2"), ("ball_2", "origin"))
     if route == "energies":
         ad = alpha.diff()
         T = P / g * (l ** 2 * ad ** 2 + l ** 2 * sp.sin(alpha) ** 2 * omega ** 2) \
             + Q / (2 * g) * (2 * l * sp.sin(alpha) * ad) ** 2
         V = -2 * P * l * sp.cos(alpha) - 2 * Q * l * sp.cos(alpha)
+        ball = lambda sign: (sign * l * sp.sin(alpha) * sp.cos(omega * TIME), -l * sp.cos(alpha),
+                             -sign * l * sp.sin(alpha) * sp.sin(omega * TIME))
+        points = {"ball_1": ball(1), "sleeve": (0, -2 * l * sp.cos(alpha), 0), "ball_2": ball(-1)}
         return Model("centrifugal_governor", [alpha], params, kinetic_energy=T, potential_energy=V,
-                     parameter_values=values)
+                     parameter_values=values, points=points, links=links)
     N, O = me.ReferenceFrame("N"), me.Point("O")
     spinning = me.ReferenceFrame("S")
     spinning.orient_axis(N, N.y, omega * TIME)
@@ -141,8 +149,9 @@ def centrifugal_governor(route: str = "bodies") -> Model:
                                                   - l * sp.cos(alpha) * spinning.y), P / g)
              for i, sign in ((1, 1), (2, -1))]
     sleeve = me.Particle("sleeve", O.locatenew("S", -2 * l * sp.cos(alpha) * N.y), Q / g)
+    points = {body.name: body.masscenter for body in (balls[0], sleeve, balls[1])}
     return Model("centrifugal_governor", [alpha], params, bodies=balls + [sleeve], gravity=-g * N.y,
-                 frame=N, origin=O, parameter_values=values)
+                 frame=N, origin=O, parameter_values=values, points=points, links=links)
 
 
 def gear_hoist(route: str = "energies") -> Model:
@@ -311,7 +320,7 @@ def slider_crank_minimal() -> Model:
     phi = sp.asin(r * sp.sin(theta) / L)
     xc, yc = r * sp.cos(theta) + L / 2 * sp.cos(phi), r * sp.sin(theta) - L / 2 * sp.sin(phi)
     s = r * sp.cos(theta) + L * sp.cos(phi)
-    speed2 = lambda *c: sum(ci.diff(TIME) ** 2 for ci in c)  # noqa: E731
+    speed2 = lambda *c: sum(ci.diff(TIME) ** 2 for ci in c)
     T = (m1 * r ** 2 / 3 * theta.diff() ** 2 + m2 * speed2(xc, yc) + m2 * L ** 2 / 12 * phi.diff(TIME) ** 2
          + m3 * speed2(s)) / 2
     V = g * (m1 * r / 2 * sp.sin(theta) + m2 * yc)
@@ -343,6 +352,7 @@ def four_bar(lengths=FOUR_BAR_GRASHOF) -> Model:
     linkage that folds flat at theta1 = theta2 = theta3 = 0, where A = dphi/dq has rank 1). The
     lengths stay free parameters. Defaults: m1 = 1, m2 = 2, m3 = 1.5, g = 9.81, tau = 5 (above the largest
     gravity torque on the crank, max dV/dtheta1 = 2.3 N m, so it turns from rest).
+    Named points: the crank pin ``A``, the rocker pin ``B`` and the fixed pivot ``O4``.
     Consistent states: `four_bar_state`."""
     theta1, theta2, theta3 = me.dynamicsymbols("theta1 theta2 theta3")
     m1, m2, m3, l1, l2, l3, d, g, tau = sp.symbols("m1 m2 m3 l1 l2 l3 d g tau", positive=True)
@@ -363,7 +373,7 @@ def four_bar(lengths=FOUR_BAR_GRASHOF) -> Model:
                                                        (m1, m2, m3), (l1, l2, l3))]
     constraints = [l1 * sp.cos(theta1) + l2 * sp.cos(theta2) - l3 * sp.cos(theta3) - d,
                    l1 * sp.sin(theta1) + l2 * sp.sin(theta2) - l3 * sp.sin(theta3)]
-    points = {"A": A, "B": A.locatenew("B", l2 * frames[1].x)}
+    points = {"A": A, "B": A.locatenew("B", l2 * frames[1].x), "O4": O4}  # the chain O A B O4 (animation)
     return Model("four_bar", [theta1, theta2, theta3], (m1, m2, m3, l1, l2, l3, d, g, tau), bodies=bodies,
                  loads=[(frames[0], tau * N.z)], gravity=-g * N.y, frame=N, origin=O, points=points,
                  constraints=constraints, parameter_values=values)

@@ -93,6 +93,11 @@ class Model:
         Gravitational acceleration, applied to every body at its mass centre.
     points : mapping name -> Point or sequence of 2-3 expressions, optional
         Positions to output (plots, animation); Points need ``frame`` and ``origin``.
+    links : sequence of (name, name), optional
+        Pairs of point names an animation joins by a segment (rods, links of a linkage);
+        ``"origin"`` is the fixed origin the positions are measured from (unless a point has that
+        name). Empty: `lagcodegen.analysis.animation` draws the chain from the origin through
+        the points in the order they are declared.
     parameter_values : mapping Symbol -> float, optional
         Default numeric values (used by examples and simulation when not overridden).
     sympy_model : LagrangesMethod, KanesMethod, System or JointsMethod, optional
@@ -150,6 +155,7 @@ class Model:
     inputs: Sequence[Any] = ()
     measurements: Mapping[str, Any] = field(default_factory=dict)
     motion_constraints: Sequence[Any] = ()
+    links: Sequence[Any] = ()
 
     def __post_init__(self) -> None:
         self._check_name()
@@ -178,6 +184,7 @@ class Model:
         set_("measurements", self._checked_measurements())
         set_("motion_constraints", tuple(_as_expr(c, f"motion constraint {i}")
                                          for i, c in enumerate(self.motion_constraints)))
+        set_("links", self._checked_links())
         self._check_route()
         self._check_connected()
         self._check_symbols()
@@ -376,6 +383,24 @@ class Model:
                 raise ModelError(f"measurement {name!r} has the name of a coordinate or input; rename it")
             checked[name] = _as_expr(expr, f"measurement {name!r}")
         return checked
+
+    def _checked_links(self) -> tuple:
+        """Pairs of distinct point names (or ``"origin"``), as a tuple of 2-tuples."""
+        if not isinstance(self.links, (list, tuple)):
+            raise ModelError(f"links must be a list or tuple of (name, name) pairs, got {type(self.links).__name__}")
+        known = (*self.points, "origin")
+        checked = []
+        for link in self.links:
+            if not (isinstance(link, (list, tuple)) and len(link) == 2 and all(isinstance(n, str) for n in link)):
+                raise ModelError(f"link {link!r} must be a pair of point names (name, name)")
+            for name in link:
+                if name not in known:
+                    raise ModelError(f"link {tuple(link)!r} names {name!r}, which is not a point of model "
+                                     f"{self.name!r} (points: {', '.join(known)})")
+            if link[0] == link[1]:
+                raise ModelError(f"link {tuple(link)!r} joins point {link[0]!r} to itself")
+            checked.append(tuple(link))
+        return tuple(checked)
 
     def _check_input_places(self, exprs) -> None:
         """Inputs may drive the forcing (V, Q, R, loads, gravity), not T, masses, positions or phi."""

@@ -296,14 +296,15 @@ Exit code 0, 1 when the build failed, 2 for a bad command line (one line on stde
 """
 
 
-def add_run_arguments(parser) -> None:
-    """Options shared by simulate and sweep."""
+def add_run_arguments(parser, default_h: float | None = None) -> None:
+    """Options shared by simulate, sweep and animate (``--h`` is required unless ``default_h``)."""
     from ..integrators.schemes import SCHEMES
 
     parser.add_argument("model", help="example name (list: lagcodegen examples) or model file")
     parser.add_argument("--t-end", type=positive_float, required=True, metavar="T",
                         help="end time (t starts at 0; T must be a whole number of steps H)")
-    parser.add_argument("--h", type=positive_float, required=True, metavar="H", help="fixed step size")
+    parser.add_argument("--h", type=positive_float, required=default_h is None, default=default_h, metavar="H",
+                        help="fixed step size" + (f" (default: {default_h:g})" if default_h is not None else ""))
     parser.add_argument("--method", default="rk4", choices=tuple(SCHEMES),
                         help="integrator, compiled in alone (default: rk4)")
     parser.add_argument("--x0", action="append", metavar="NAME=VALUE",

@@ -34,6 +34,7 @@ from .arguments import (
     parse_names,
 )
 from .runs import add_run_commands
+from .scenes import add_animate_parser
 
 
 def describe_example(name: str, builder, width: int = 88) -> str:
@@ -254,6 +255,7 @@ def make_parser() -> Parser:
                       help="fold a parameter into the code (repeatable, or comma-separated)")
     emit.set_defaults(run=cmd_emit)
     add_run_commands(commands)
+    add_animate_parser(commands)
     return parser
 
 

@@ -30,12 +30,18 @@ from .arguments import (
 MEMORY_SHARE = 0.5
 
 
-def prepare_run(args, command: str, swept=()) -> tuple:
-    """Derive the model and check every name given on the command line before compiling.
+def prepare_run(args, command: str, swept=(), model=None) -> tuple:
+    """Derive the model (``model``, else loaded from ``args.model``) and check every name given
+    on the command line before compiling.
 
     Returns (eom, fixed, params, x0) with plain ``{name: float}`` dicts.
     """
-    eom = derive_equations_of(args.model)
+    if model is None:
+        eom = derive_equations_of(args.model)
+    else:
+        from ..symbolic.derive import derive_equations
+
+        eom = derive_equations(model)
     fixed = parse_assignments(args.fixed, "--fixed")
     params = parse_assignments(args.param, "--param")
     x0 = parse_assignments(args.x0, "--x0")
