@@ -33,6 +33,7 @@ from .arguments import (
     parse_assignments,
     parse_names,
 )
+from .fmu import add_fmu_command
 from .runs import add_run_commands
 
 
@@ -253,6 +254,7 @@ def make_parser() -> Parser:
                       help="fold a parameter into the code (repeatable, or comma-separated)")
     emit.set_defaults(run=cmd_emit)
     add_run_commands(commands)
+    add_fmu_command(commands)
     return parser
 
 

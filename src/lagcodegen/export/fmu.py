@@ -86,9 +86,16 @@ def export_fmu(model, path, *, method: str = "rk4", step: float = 1e-3, x0=None,
 
     Examples
     --------
+    The double pendulum's FMU, sources only (``binary=True``, the default, adds this host's):
+
+    >>> import pathlib, tempfile, zipfile
     >>> from lagcodegen.catalog import double_pendulum
     >>> from lagcodegen.export import export_fmu
-    >>> fmu = export_fmu(double_pendulum(), tmp / "pendulum.fmu", x0={"q1": 1.0})  # doctest: +SKIP
+    >>> folder = pathlib.Path(tempfile.mkdtemp())
+    >>> fmu = export_fmu(double_pendulum(), folder / "pendulum.fmu", x0={"q1": 1.0}, binary=False)
+    >>> sorted(zipfile.ZipFile(fmu).namelist())  # doctest: +NORMALIZE_WHITESPACE
+    ['modelDescription.xml', 'sources/lcg_double_pendulum.c', 'sources/lcg_double_pendulum.h',
+     'sources/lcg_double_pendulum_fmi2.c']
     """
     target = _checked_path(path)
     get_scheme(method)  # a KeyError naming the method and the known ones
