@@ -23,7 +23,6 @@ import numpy as np
 import pytest
 import sympy as sp
 import sympy.physics.mechanics as me
-from conftest import driven_oscillator_model, require_tool
 
 fmpy = pytest.importorskip("fmpy")
 from fmpy import read_model_description, simulate_fmu  # noqa: E402
@@ -55,8 +54,8 @@ def pendulum_fmu(pendulum, tmp_path_factory):
 
 
 @pytest.fixture(scope="module")
-def oscillator():
-    model = driven_oscillator_model(measurements={"spring_force": lambda x, F, m, k, c: k * x})
+def oscillator(driven_oscillator):
+    model = driven_oscillator(measurements={"spring_force": lambda x, F, m, k, c: k * x})
     return compile_model(model, methods=("rk4",))
 
 
@@ -147,7 +146,7 @@ def test_model_exchange_under_cvode_equals_dop853(pendulum_fmu):
     assert np.max(np.abs(states(result) - reference)) <= 1e-6
 
 
-def test_the_fmi_functions_match_the_standard_headers(pendulum_fmu, tmp_path):
+def test_the_fmi_functions_match_the_standard_headers(pendulum_fmu, tmp_path, require_tool):
     """Compile the wrapper against the FMI 2.0 headers FMPy ships: any signature that differs from
     the standard's declaration is a conflicting-types error."""
     gcc = require_tool("gcc")
@@ -161,7 +160,7 @@ def test_the_fmi_functions_match_the_standard_headers(pendulum_fmu, tmp_path):
     assert run.returncode == 0, run.stderr
 
 
-def test_the_fmu_builds_from_its_sources(pendulum_fmu, tmp_path):
+def test_the_fmu_builds_from_its_sources(pendulum_fmu, tmp_path, require_tool):
     require_tool("cmake")
     from fmpy.build import build_platform_binary
 
