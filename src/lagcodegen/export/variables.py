@@ -17,6 +17,7 @@ fixed           local, constant, exact       parameters folded into the C (read 
 energy          output, continuous, calc.    T + V (when the model has energies)
 point           output, continuous, calc.    ``<point>.x``, ``.y``, ``.z`` of each named point
 measurement     output, continuous, calc.    the model's output expressions y
+time            independent, continuous      ``time`` (FMI 3.0 only, which requires it)
 ==============  ===========================  ==================================================
 
 The model states no units, so no variable has one.
@@ -26,7 +27,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 #: the kinds in value-reference order (the C wrapper's ranges follow it)
-KINDS = ("state", "derivative", "parameter", "input", "step", "fixed", "energy", "point", "measurement")
+KINDS = ("state", "derivative", "parameter", "input", "step", "fixed", "energy", "point", "measurement", "time")
 #: name of the Co-Simulation step parameter
 STEP_NAME = "step_size"
 #: kind -> (causality, variability, initial) in FMI 2.0
@@ -40,6 +41,7 @@ ATTRIBUTES = {
     "energy": ("output", "continuous", "calculated"),
     "point": ("output", "continuous", "calculated"),
     "measurement": ("output", "continuous", "calculated"),
+    "time": ("independent", "continuous", None),
 }
 
 
@@ -97,9 +99,11 @@ class VariableTable:
         return first
 
 
-def fmi_variables(layout, x0, p, h: float, *, method: str, has_energy: bool) -> VariableTable:
+def fmi_variables(layout, x0, p, h: float, *, method: str, has_energy: bool,
+                  fmi_version: str = "2.0") -> VariableTable:
     """The variable table of a kernel ``layout`` (`render.KernelLayout`) with start values ``x0``
-    (2n), ``p`` (free parameters, p[] order) and the Co-Simulation step ``h``.
+    (2n), ``p`` (free parameters, p[] order) and the Co-Simulation step ``h``; FMI 3.0 adds the
+    independent variable ``time``.
 
     Raises `VariableError` when two variables would have the same name (a measurement called
     like a state, a parameter called ``step_size``, ...), naming both.
@@ -130,6 +134,8 @@ def fmi_variables(layout, x0, p, h: float, *, method: str, has_energy: bool) -> 
             add(f"{point}.{axis}", "point", f"{axis} coordinate of point {point}")
     for name in layout.measurements:
         add(name, "measurement", "output expression of the model")
+    if fmi_version == "3.0":
+        add("time", "time", "simulation time")
     _check_unique(rows)
     return VariableTable(tuple(rows))
 
