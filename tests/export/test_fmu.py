@@ -1,4 +1,4 @@
-"""FMU export (issue 16 item 3): the FMI 2.0 FMU is valid, and FMPy runs it to our numbers.
+"""FMU export (issue 16 item 3): the FMI 2.0 and 3.0 FMUs are valid, and FMPy runs them to our numbers.
 
 Expected values and where they come from:
 - validity: FMPy's own validation (schema, variable names, ModelStructure, start values);
@@ -10,10 +10,12 @@ Expected values and where they come from:
   written in numpy here, independent of the package;
 - the FMI functions' signatures: the standard's own headers as FMPy ships them;
 - the source build: FMPy's ``build_platform_binary`` (CMake), compared with the shipped binary.
+Each FMU test runs for FMI 2.0 and FMI 3.0 (the `fmi_version` fixture).
 """
 from __future__ import annotations
 
 import doctest
+import re
 import shutil
 import subprocess
 import zipfile
@@ -48,9 +50,15 @@ def pendulum():
     return compile_model(double_pendulum(), methods=("rk4",))
 
 
+@pytest.fixture(scope="module", params=["2.0", "3.0"])
+def fmi_version(request):
+    return request.param
+
+
 @pytest.fixture(scope="module")
-def pendulum_fmu(pendulum, tmp_path_factory):
-    return export_fmu(pendulum, tmp_path_factory.mktemp("fmu") / "double_pendulum.fmu", x0=X0, step=H)
+def pendulum_fmu(pendulum, fmi_version, tmp_path_factory):
+    return export_fmu(pendulum, tmp_path_factory.mktemp("fmu") / "double_pendulum.fmu", x0=X0, step=H,
+                      fmi_version=fmi_version)
 
 
 @pytest.fixture(scope="module")
@@ -60,18 +68,20 @@ def oscillator(driven_oscillator):
 
 
 @pytest.fixture(scope="module")
-def oscillator_fmu(oscillator, tmp_path_factory):
-    return export_fmu(oscillator, tmp_path_factory.mktemp("fmu") / "oscillator.fmu", x0={"x": 0.2}, step=H)
+def oscillator_fmu(oscillator, fmi_version, tmp_path_factory):
+    return export_fmu(oscillator, tmp_path_factory.mktemp("fmu") / "oscillator.fmu", x0={"x": 0.2}, step=H,
+                      fmi_version=fmi_version)
 
 
 def states(result, names=STATES) -> np.ndarray:
     return np.column_stack([result[name] for name in names])
 
 
-def test_fmpy_validation_finds_no_problem(pendulum_fmu, oscillator_fmu):
+def test_fmpy_validation_finds_no_problem(pendulum_fmu, oscillator_fmu, fmi_version):
     assert validate_fmu(str(pendulum_fmu)) == []
     assert validate_fmu(str(oscillator_fmu)) == []
     description = read_model_description(str(oscillator_fmu))
+    assert description.fmiVersion == fmi_version
     kinds = {v.name: (v.causality, v.variability) for v in description.modelVariables}
     assert kinds["F"] == ("input", "continuous") and kinds["k"] == ("parameter", "tunable")
     assert kinds["spring_force"] == ("output", "continuous") and kinds["energy"] == ("output", "continuous")
@@ -146,18 +156,25 @@ def test_model_exchange_under_cvode_equals_dop853(pendulum_fmu):
     assert np.max(np.abs(states(result) - reference)) <= 1e-6
 
 
-def test_the_fmi_functions_match_the_standard_headers(pendulum_fmu, tmp_path, require_tool):
-    """Compile the wrapper against the FMI 2.0 headers FMPy ships: any signature that differs from
-    the standard's declaration is a conflicting-types error."""
+def test_the_fmi_functions_match_the_standard_headers(pendulum_fmu, fmi_version, tmp_path, require_tool):
+    """Compile the wrapper against the FMI headers FMPy ships: any signature that differs from the
+    standard's declaration is a conflicting-types error, a missing function a missing symbol."""
     gcc = require_tool("gcc")
     with zipfile.ZipFile(pendulum_fmu) as archive:
         archive.extractall(tmp_path)
     headers = Path(fmpy.__file__).parent / "c-code"
     sources = sorted(str(p) for p in (tmp_path / "sources").glob("*.c"))
-    run = subprocess.run([gcc, "-std=c99", "-Wall", "-Wextra", "-Wpedantic", "-Werror", "-DLCG_FMI2_STANDARD_HEADERS",
+    macro = f"-DLCG_FMI{fmi_version[0]}_STANDARD_HEADERS"
+    run = subprocess.run([gcc, "-std=c99", "-Wall", "-Wextra", "-Wpedantic", "-Werror", macro,
                           "-I", str(headers), "-I", str(tmp_path / "sources"), "-fPIC", "-shared", *sources,
                           "-o", str(tmp_path / "check.so"), "-lm"], capture_output=True, text=True)
     assert run.returncode == 0, run.stderr
+    # every function the standard declares is defined (its header lists them as #define fmiNName)
+    header = (headers / f"fmi{fmi_version[0]}Functions.h").read_text()
+    declared = set(re.findall(rf"#define (fmi{fmi_version[0]}[A-Z]\w*)\s+fmi{fmi_version[0]}FullName", header))
+    symbols = subprocess.run(["nm", "-D", "--defined-only", str(tmp_path / "check.so")], capture_output=True,
+                             text=True).stdout.split()
+    assert len(declared) > 40 and declared <= set(symbols), declared - set(symbols)
 
 
 def test_the_fmu_builds_from_its_sources(pendulum_fmu, tmp_path, require_tool):
@@ -174,13 +191,15 @@ def test_the_fmu_builds_from_its_sources(pendulum_fmu, tmp_path, require_tool):
     assert np.max(np.abs(states(rebuilt) - states(shipped))) <= 1e-12
 
 
-def test_the_cli_writes_an_fmu_fmpy_reads(tmp_path, capsys):
+@pytest.mark.parametrize("version", ["2.0", "3.0"])
+def test_the_cli_writes_an_fmu_fmpy_reads(tmp_path, capsys, version):
     out = tmp_path / "x.fmu"
-    assert main(["fmu", "double_pendulum", "--out", str(out), "--x0", "q1=1", "--no-binary"]) == 0
+    assert main(["fmu", "double_pendulum", "--out", str(out), "--x0", "q1=1", "--no-binary",
+                 "--fmi-version", version]) == 0
     assert "wrote" in capsys.readouterr().out
     description = read_model_description(str(out))
     assert description.coSimulation.modelIdentifier == "lcg_double_pendulum" and description.modelExchange
-    assert validate_fmu(str(out)) == []
+    assert description.fmiVersion == version and validate_fmu(str(out)) == []
     assert {v.name: v.start for v in description.modelVariables}["q1"] == "1.0"
 
 

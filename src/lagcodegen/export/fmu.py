@@ -1,12 +1,12 @@
-"""Stage: Model / CompiledSystem -> an FMI 2.0 FMU (Model Exchange and Co-Simulation in one).
+"""Stage: Model / CompiledSystem -> an FMI 2.0 or 3.0 FMU (Model Exchange and Co-Simulation in one).
 
 The FMU holds the model's generated C kernel (the same text `render_sources` emits and
-`compile_model` builds), a wrapper rendered from ``templates/fmi2.c.j2`` that implements the FMI
-2.0 functions on it, ``modelDescription.xml`` (`description.py`, from the variable table of
-`variables.py`) and a binary for the host platform built from those sources. The binary is built
-by the project's C compiler and flags (`build.DEFAULT_FLAGS`); the sources build it again with
-any other toolchain (they are listed in the description, as FMPy's ``build_platform_binary``
-reads them).
+`compile_model` builds), a wrapper rendered from ``templates/fmi2.c.j2`` or ``fmi3.c.j2`` that
+implements the FMI functions on it, ``modelDescription.xml`` (`description.py`, from the variable
+table of `variables.py`) and a binary for the host platform built from those sources. The binary
+is built by the project's C compiler and flags (`build.DEFAULT_FLAGS`); the sources build it again
+with any other toolchain (FMI 2.0 lists them in the model description, FMI 3.0 in
+``sources/buildDescription.xml``; FMPy's ``build_platform_binary`` reads either).
 """
 from __future__ import annotations
 
@@ -34,14 +34,23 @@ from ..model import Model
 from ..native.build import DEFAULT_FLAGS, BuildError, CompiledSystem, _compiler_command
 from ..status import STATUS_TABLE
 from ..symbolic.derive import EquationsOfMotion, derive_equations
-from .description import model_description
+from .description import build_description, model_description, model_description_fmi3
 from .variables import fmi_variables
 
 #: outputs the FMU exposes, when the model has them
 FMU_OUTPUTS = ("rhs", "energy", "points", "measurements")
-#: (sys.platform prefix, machine) -> (FMI 2.0 binaries folder, shared library suffix)
-PLATFORMS = {("linux", "x86_64"): ("linux64", ".so"), ("darwin", "x86_64"): ("darwin64", ".dylib"),
-             ("darwin", "arm64"): ("darwin64", ".dylib"), ("win32", "AMD64"): ("win64", ".dll")}
+FMI_VERSIONS = ("2.0", "3.0")
+#: (sys.platform prefix, machine) -> (FMI 2.0 binaries folder, FMI 3.0 binaries folder, library suffix)
+PLATFORMS = {("linux", "x86_64"): ("linux64", "x86_64-linux", ".so"),
+             ("linux", "aarch64"): (None, "aarch64-linux", ".so"),
+             ("darwin", "x86_64"): ("darwin64", "x86_64-darwin", ".dylib"),
+             ("darwin", "arm64"): ("darwin64", "aarch64-darwin", ".dylib"),
+             ("win32", "AMD64"): ("win64", "x86_64-windows", ".dll")}
+#: the FMI 3.0 functions the wrapper defines from one pattern each (templates/fmi3.c.j2)
+FMI3_OTHER_TYPES = ("Float32", "Int8", "UInt8", "Int16", "UInt16", "Int32", "UInt32", "Int64", "UInt64",
+                    "Boolean", "String")
+FMI3_DERIVATIVE_FUNCTIONS = ("GetDirectionalDerivative", "GetAdjointDerivative")
+FMI3_CONFIGURATION_FUNCTIONS = ("EnterConfigurationMode", "ExitConfigurationMode")
 #: a zip entry's time stamp: fixed, so that the same model gives the same archive listing
 ZIP_TIME = (1980, 1, 1, 0, 0, 0)
 
@@ -51,8 +60,9 @@ class FmuError(ValueError):
 
 
 def export_fmu(model, path, *, method: str = "rk4", step: float = 1e-3, x0=None, params: Mapping | None = None,
-               fixed: Mapping | None = None, binary: bool = True, compiler: str | None = None) -> Path:
-    """Write an FMI 2.0 FMU (Model Exchange and Co-Simulation) of ``model`` to ``path``.
+               fixed: Mapping | None = None, fmi_version: str = "2.0", binary: bool = True,
+               compiler: str | None = None) -> Path:
+    """Write an FMI 2.0 or 3.0 FMU (Model Exchange and Co-Simulation) of ``model`` to ``path``.
 
     Parameters
     ----------
@@ -75,6 +85,7 @@ def export_fmu(model, path, *, method: str = "rk4", step: float = 1e-3, x0=None,
     fixed : mapping name -> float, optional
         Parameters folded into the C as constants (Model or EquationsOfMotion only); the FMU
         shows them as read-only constants.
+    fmi_version : {"2.0", "3.0"}
     binary : bool
         Build ``binaries/<platform>/<identifier>`` for this host (else sources only).
     compiler : str, optional
@@ -98,26 +109,34 @@ def export_fmu(model, path, *, method: str = "rk4", step: float = 1e-3, x0=None,
      'sources/lcg_double_pendulum_fmi2.c']
     """
     target = _checked_path(path)
+    if fmi_version not in FMI_VERSIONS:
+        raise FmuError(f"fmi_version must be one of {', '.join(FMI_VERSIONS)}, got {fmi_version!r}")
     get_scheme(method)  # a KeyError naming the method and the known ones
     step = _positive_step(step)
+    folder = _platform_folder(fmi_version) if binary else None
     sources = _kernel_sources(model, method, fixed)
     layout = sources.layout
-    table = fmi_variables(layout, _state_start(layout, x0), _parameter_start(layout, params), step,
-                          method=method, has_energy=f"{layout.prefix}_energy" in layout.functions)
+    table = fmi_variables(layout, _state_start(layout, x0), _parameter_start(layout, params), step, method=method,
+                          has_energy=f"{layout.prefix}_energy" in layout.functions, fmi_version=fmi_version)
     guid = _guid(sources, table, method)
-    wrapper_name = f"{layout.prefix}_fmi2.c"
-    wrapper = _wrapper_source(sources, table, guid, method, step, wrapper_name)
+    wrapper_name = f"{layout.prefix}_fmi{fmi_version[0]}.c"
+    wrapper = _wrapper_source(sources, table, guid, method, step, wrapper_name, fmi_version)
     files = {f"sources/{sources.header_name}": sources.header, f"sources/{sources.source_name}": sources.source,
              f"sources/{wrapper_name}": wrapper}
-    description = model_description(
-        table, model_name=layout.model, identifier=layout.prefix, guid=guid,
-        description=f"{layout.model}: Lagrange's equations, {method} at step_size in Co-Simulation",
-        tool=f"lagcodegen {__version__}", sources=(sources.source_name, wrapper_name), step=step)
+    about = dict(model_name=layout.model, identifier=layout.prefix, tool=f"lagcodegen {__version__}", step=step,
+                 description=f"{layout.model}: Lagrange's equations, {method} at step_size in Co-Simulation")
+    if fmi_version == "2.0":
+        description = model_description(table, guid=guid, sources=(sources.source_name, wrapper_name), **about)
+    else:
+        description = model_description_fmi3(table, token=guid, **about)
     members = {"modelDescription.xml": description.encode("utf-8")}
     members |= {name: text.encode("utf-8") for name, text in files.items()}
-    if binary:
-        folder, suffix = _platform_folder()
-        members[f"binaries/{folder}/{layout.prefix}{suffix}"] = _build_binary(files, layout.prefix + suffix, compiler)
+    if fmi_version == "3.0":
+        members["sources/buildDescription.xml"] = build_description(
+            layout.prefix, (sources.source_name, wrapper_name)).encode("utf-8")
+    if folder is not None:
+        name, suffix = folder
+        members[f"binaries/{name}/{layout.prefix}{suffix}"] = _build_binary(files, layout.prefix + suffix, compiler)
     _write_zip(target, members)
     return target
 
@@ -211,7 +230,8 @@ def _guid(sources: CSources, table, method: str) -> str:
     return "{" + str(uuid.UUID(bytes=digest.digest()[:16])) + "}"
 
 
-def _wrapper_source(sources: CSources, table, guid: str, method: str, step: float, source_name: str) -> str:
+def _wrapper_source(sources: CSources, table, guid: str, method: str, step: float, source_name: str,
+                    fmi_version: str) -> str:
     layout = sources.layout
     numbers_of = lambda kind: ", ".join(repr(float(v.start)) for v in table.of_kind(kind)) or "0.0"  # noqa: E731
     context = {
@@ -227,17 +247,22 @@ def _wrapper_source(sources: CSources, table, guid: str, method: str, step: floa
         "has_energy": bool(table.of_kind("energy")), "has_points": bool(layout.points),
         "has_measurements": bool(layout.measurements),
         "status_codes": [{"value": row.code, "doc": row.message} for row in STATUS_TABLE],
+        "other_types": FMI3_OTHER_TYPES, "derivative_functions": FMI3_DERIVATIVE_FUNCTIONS,
+        "configuration_functions": FMI3_CONFIGURATION_FUNCTIONS,
     }
-    return template_environment().get_template("fmi2.c.j2").render(context)
+    template = "fmi2.c.j2" if fmi_version == "2.0" else "fmi3.c.j2"
+    return template_environment().get_template(template).render(context)
 
 
-def _platform_folder() -> tuple:
+def _platform_folder(fmi_version: str) -> tuple:
+    """(binaries folder, library suffix) of this host in ``fmi_version``."""
     machine = platform.machine()
-    for (system, arch), folder in PLATFORMS.items():
-        if sys.platform.startswith(system) and machine == arch:
-            return folder
-    raise FmuError(f"FMI 2.0 names no binaries folder for {sys.platform} on {machine}; export with binary=False "
-                   f"and build the FMU from its sources on the importing side")
+    for (system, arch), (fmi2, fmi3, suffix) in PLATFORMS.items():
+        folder = fmi2 if fmi_version == "2.0" else fmi3
+        if sys.platform.startswith(system) and machine == arch and folder:
+            return folder, suffix
+    raise FmuError(f"FMI {fmi_version} names no binaries folder for {sys.platform} on {machine}; export with "
+                   f"binary=False and build the FMU from its sources on the importing side")
 
 
 def _build_binary(files: dict, so_name: str, compiler: str | None) -> bytes:

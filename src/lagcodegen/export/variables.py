@@ -2,16 +2,16 @@
 
 `fmi_variables` is the single source of truth for names, value references, causality and
 start values: ``modelDescription.xml`` (`description.py`) lists its rows and the C wrapper
-(``templates/fmi2.c.j2``) receives its value-reference ranges (`VariableTable.ranges`), so the
+(``templates/fmu_core.c.j2``) receives its value-reference ranges (`VariableTable.ranges`), so the
 two cannot disagree. Value references are consecutive and grouped by kind, in this order:
 
 ==============  ===========================  ==================================================
-kind            FMI 2.0 causality            values
+kind            causality (FMI 2.0 and 3.0)  values
 ==============  ===========================  ==================================================
 state           output, continuous, exact    x = (q, u), 2n (Model Exchange: the states)
 derivative      local, continuous, calc.     der(x), 2n (Model Exchange: their derivatives)
 parameter       parameter, tunable, exact    the free parameters, p[] order
-input           input, continuous, exact     the inputs r, start 0
+input           input, continuous            the inputs r, start 0
 step            parameter, fixed, exact      ``step_size``, the Co-Simulation fixed step
 fixed           local, constant, exact       parameters folded into the C (read only)
 energy          output, continuous, calc.    T + V (when the model has energies)
@@ -30,7 +30,7 @@ from dataclasses import dataclass
 KINDS = ("state", "derivative", "parameter", "input", "step", "fixed", "energy", "point", "measurement", "time")
 #: name of the Co-Simulation step parameter
 STEP_NAME = "step_size"
-#: kind -> (causality, variability, initial) in FMI 2.0
+#: kind -> (causality, variability, initial), the same in FMI 2.0 and 3.0
 ATTRIBUTES = {
     "state": ("output", "continuous", "exact"),
     "derivative": ("local", "continuous", "calculated"),
