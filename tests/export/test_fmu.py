@@ -132,6 +132,15 @@ def test_a_driven_model_follows_the_input_signal_held_over_each_interval(oscilla
     assert np.ptp(result["x"]) > 0.1  # the input moves it
 
 
+def test_a_diverging_step_stops_the_run_and_says_why(pendulum_fmu):
+    messages = []
+    with pytest.raises(Exception, match="DoStep failed with status 3"):  # fmi2Error = fmi3Error = 3
+        simulate_fmu(str(pendulum_fmu), stop_time=50.0, output_interval=1.0,
+                     start_values={"step_size": 0.9, "q1_d": 20.0}, logger=lambda *args: messages.append(repr(args)))
+    # the status message of the C kernel (status.py's NONFINITE_STATE), with the step's start time
+    assert any("DoStep: the step (t = 1): the state or its derivatives became NaN or infinite" in m for m in messages)
+
+
 def landau_rhs(t, x, m1=1.0, m2=1.0, l1=1.0, l2=1.0, g=9.81):
     """The double pendulum in absolute angles from the downward vertical, from
     L = (m1 + m2)/2 l1^2 q1d^2 + m2/2 l2^2 q2d^2 + m2 l1 l2 q1d q2d cos(q1 - q2)
@@ -195,12 +204,14 @@ def test_the_fmu_builds_from_its_sources(pendulum_fmu, tmp_path, require_tool):
 def test_the_cli_writes_an_fmu_fmpy_reads(tmp_path, capsys, version):
     out = tmp_path / "x.fmu"
     assert main(["fmu", "double_pendulum", "--out", str(out), "--x0", "q1=1", "--no-binary",
-                 "--fmi-version", version]) == 0
+                 "--fmi-version", version, "--fixed", "g=9.81"]) == 0
     assert "wrote" in capsys.readouterr().out
     description = read_model_description(str(out))
     assert description.coSimulation.modelIdentifier == "lcg_double_pendulum" and description.modelExchange
     assert description.fmiVersion == version and validate_fmu(str(out)) == []
-    assert {v.name: v.start for v in description.modelVariables}["q1"] == "1.0"
+    variables = {v.name: v for v in description.modelVariables}
+    assert variables["q1"].start == "1.0" and variables["m1"].variability == "tunable"
+    assert (variables["g"].causality, variables["g"].variability, variables["g"].start) == ("local", "constant", "9.81")
 
 
 def test_the_docstring_example_runs():
