@@ -33,6 +33,7 @@ from .arguments import (
     parse_assignments,
     parse_names,
 )
+from .fmu import add_fmu_command
 from .runs import add_run_commands
 from .scenes import add_animate_parser
 
@@ -256,6 +257,7 @@ def make_parser() -> Parser:
     emit.set_defaults(run=cmd_emit)
     add_run_commands(commands)
     add_animate_parser(commands)
+    add_fmu_command(commands)
     return parser
 
 

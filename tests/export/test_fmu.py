@@ -1,0 +1,268 @@
+"""FMU export (issue 16 item 3): the FMI 2.0 and 3.0 FMUs are valid, and FMPy runs them to our numbers.
+
+Expected values and where they come from:
+- validity: FMPy's own validation (schema, variable names, ModelStructure, start values);
+- Co-Simulation: our `simulate` (the C driver loop of the compiled kernel, not the FMU's
+  doStep) with the same method, step and parameters, to 1e-12; a remainder interval against
+  `simulate` runs chained by hand (whole steps, then one short step);
+- Model Exchange: FMPy's CVode against scipy's DOP853 at rtol = atol = 1e-12 on the double
+  pendulum hand-derived from Landau & Lifshitz's Lagrangian (Mechanics, sec. 5, problem 1),
+  written in numpy here, independent of the package;
+- the FMI functions' signatures: the standard's own headers as FMPy ships them;
+- the source build: FMPy's ``build_platform_binary`` (CMake), compared with the shipped binary.
+Each FMU test runs for FMI 2.0 and FMI 3.0 (the `fmi_version` fixture).
+"""
+from __future__ import annotations
+
+import doctest
+import re
+import shutil
+import subprocess
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+import sympy as sp
+import sympy.physics.mechanics as me
+
+fmpy = pytest.importorskip("fmpy")
+from fmpy import read_model_description, simulate_fmu  # noqa: E402
+from fmpy.validation import validate_fmu  # noqa: E402
+
+from lagcodegen import Model  # noqa: E402
+from lagcodegen.catalog import double_pendulum  # noqa: E402
+from lagcodegen.cli.commands import main  # noqa: E402
+from lagcodegen.export import FmuError, export_fmu  # noqa: E402
+from lagcodegen.export.variables import VariableError  # noqa: E402
+from lagcodegen.pipeline import compile_model  # noqa: E402
+from lagcodegen.run.simulate import simulate  # noqa: E402
+
+pytestmark = pytest.mark.compiler
+
+STATES = ("q1", "q2", "q1_d", "q2_d")
+X0 = {"q1": 1.0, "q2": 0.5, "q1_d": 0.0, "q2_d": 0.0}
+H = 1e-3
+
+
+@pytest.fixture(scope="module")
+def pendulum():
+    return compile_model(double_pendulum(), methods=("rk4",))
+
+
+@pytest.fixture(scope="module", params=["2.0", "3.0"])
+def fmi_version(request):
+    return request.param
+
+
+@pytest.fixture(scope="module")
+def pendulum_fmu(pendulum, fmi_version, tmp_path_factory):
+    return export_fmu(pendulum, tmp_path_factory.mktemp("fmu") / "double_pendulum.fmu", x0=X0, step=H,
+                      fmi_version=fmi_version)
+
+
+@pytest.fixture(scope="module")
+def oscillator(driven_oscillator):
+    model = driven_oscillator(measurements={"spring_force": lambda x, F, m, k, c: k * x})
+    return compile_model(model, methods=("rk4",))
+
+
+@pytest.fixture(scope="module")
+def oscillator_fmu(oscillator, fmi_version, tmp_path_factory):
+    return export_fmu(oscillator, tmp_path_factory.mktemp("fmu") / "oscillator.fmu", x0={"x": 0.2}, step=H,
+                      fmi_version=fmi_version)
+
+
+def states(result, names=STATES) -> np.ndarray:
+    return np.column_stack([result[name] for name in names])
+
+
+def test_fmpy_validation_finds_no_problem(pendulum_fmu, oscillator_fmu, fmi_version):
+    assert validate_fmu(str(pendulum_fmu)) == []
+    assert validate_fmu(str(oscillator_fmu)) == []
+    description = read_model_description(str(oscillator_fmu))
+    assert description.fmiVersion == fmi_version
+    kinds = {v.name: (v.causality, v.variability) for v in description.modelVariables}
+    assert kinds["F"] == ("input", "continuous") and kinds["k"] == ("parameter", "tunable")
+    assert kinds["spring_force"] == ("output", "continuous") and kinds["energy"] == ("output", "continuous")
+    assert kinds["step_size"] == ("parameter", "fixed")
+    assert [d.variable.name for d in description.derivatives] == ["der(x)", "der(x_d)"]
+
+
+def test_co_simulation_equals_simulate(pendulum, pendulum_fmu):
+    result = simulate_fmu(str(pendulum_fmu), stop_time=2.0, output_interval=0.01, output=[*STATES, "energy"])
+    reference = simulate(pendulum, X0, 2.0, H, "rk4", stride=10, energy=True)  # our C driver loop
+    np.testing.assert_allclose(result["time"], reference.t, rtol=0, atol=1e-12)
+    assert np.max(np.abs(states(result) - reference.x)) <= 1e-12
+    assert np.max(np.abs(result["energy"] - reference.energy)) <= 1e-12
+
+
+def test_an_interval_of_two_and_a_half_steps_ends_with_a_short_step(pendulum, pendulum_fmu):
+    result = simulate_fmu(str(pendulum_fmu), stop_time=0.01, output_interval=0.0025, output=list(STATES))
+    x, expected = [X0[name] for name in STATES], []
+    for _ in range(4):  # by hand: two steps of H, then one of H / 2 (the pendulum is autonomous)
+        x = simulate(pendulum, x, 2 * H, H, "rk4").x[-1]
+        x = simulate(pendulum, x, H / 2, H / 2, "rk4", check_stability=False).x[-1]
+        expected.append(x)
+    assert np.max(np.abs(states(result)[1:] - np.array(expected))) <= 1e-12
+
+
+def test_start_values_set_parameters_and_states(pendulum, pendulum_fmu):
+    changed = {"m2": 2.0, "l1": 0.7, "q1": 0.3, "q2_d": -0.4}
+    result = simulate_fmu(str(pendulum_fmu), stop_time=1.0, output_interval=0.01, output=list(STATES),
+                          start_values=changed)
+    x0 = X0 | {"q1": 0.3, "q2_d": -0.4}
+    reference = simulate(pendulum, x0, 1.0, H, "rk4", stride=10, params={"m2": 2.0, "l1": 0.7})
+    assert np.max(np.abs(states(result) - reference.x)) <= 1e-12
+    assert np.max(np.abs(states(result) - simulate(pendulum, x0, 1.0, H, "rk4", stride=10).x)) > 1e-3
+
+
+def test_a_driven_model_follows_the_input_signal_held_over_each_interval(oscillator, oscillator_fmu):
+    interval, stop = 0.01, 1.0
+    knots = np.arange(101) * interval  # the communication points FMPy computes: start + k * interval
+    values = np.sin(3 * knots) + 0.5
+    signal = np.array(list(zip(knots, values)), dtype=[("time", np.float64), ("F", np.float64)])
+    result = simulate_fmu(str(oscillator_fmu), stop_time=stop, output_interval=interval, input=signal,
+                          output=["x", "x_d", "spring_force"])
+    # FMPy sets F to the knot value at each communication point; the FMU holds it for 10 steps
+    per_step = np.repeat(values[:-1], 10)
+    reference = simulate(oscillator, {"x": 0.2}, stop, H, "rk4", stride=10, inputs=per_step)
+    assert np.max(np.abs(states(result, ("x", "x_d")) - reference.x)) <= 1e-12
+    assert np.max(np.abs(result["spring_force"] - reference["spring_force"])) <= 1e-12
+    assert np.ptp(result["x"]) > 0.1  # the input moves it
+
+
+def test_a_diverging_step_stops_the_run_and_says_why(pendulum_fmu):
+    messages = []
+    with pytest.raises(Exception, match="DoStep failed with status 3"):  # fmi2Error = fmi3Error = 3
+        simulate_fmu(str(pendulum_fmu), stop_time=50.0, output_interval=1.0,
+                     start_values={"step_size": 0.9, "q1_d": 20.0}, logger=lambda *args: messages.append(repr(args)))
+    # the status message of the C kernel (status.py's NONFINITE_STATE), with the step's start time
+    assert any("DoStep: the step (t = 1): the state or its derivatives became NaN or infinite" in m for m in messages)
+
+
+def landau_rhs(t, x, m1=1.0, m2=1.0, l1=1.0, l2=1.0, g=9.81):
+    """The double pendulum in absolute angles from the downward vertical, from
+    L = (m1 + m2)/2 l1^2 q1d^2 + m2/2 l2^2 q2d^2 + m2 l1 l2 q1d q2d cos(q1 - q2)
+        + (m1 + m2) g l1 cos q1 + m2 g l2 cos q2 (Landau & Lifshitz, Mechanics, sec. 5, problem 1)."""
+    q1, q2, u1, u2 = x
+    c, s = np.cos(q1 - q2), np.sin(q1 - q2)
+    M = np.array([[(m1 + m2) * l1 ** 2, m2 * l1 * l2 * c], [m2 * l1 * l2 * c, m2 * l2 ** 2]])
+    F = np.array([-m2 * l1 * l2 * u2 ** 2 * s - (m1 + m2) * g * l1 * np.sin(q1),
+                  m2 * l1 * l2 * u1 ** 2 * s - m2 * g * l2 * np.sin(q2)])
+    return np.concatenate([[u1, u2], np.linalg.solve(M, F)])
+
+
+def test_model_exchange_under_cvode_equals_dop853(pendulum_fmu):
+    from scipy.integrate import solve_ivp
+
+    result = simulate_fmu(str(pendulum_fmu), fmi_type="ModelExchange", stop_time=2.0, output_interval=0.01,
+                          relative_tolerance=1e-10, output=list(STATES))  # CVode: atol = rtol * nominal (1)
+    t = np.asarray(result["time"])
+    reference = solve_ivp(landau_rhs, (0.0, 2.0), [X0[name] for name in STATES], method="DOP853",
+                          t_eval=t, rtol=1e-12, atol=1e-12).y.T
+    # CVode's global error at rtol = atol = 1e-10 over 2 s: measured 3.4e-8 (6.7e-7 at 1e-8)
+    assert np.max(np.abs(states(result) - reference)) <= 1e-6
+
+
+def test_the_fmi_functions_match_the_standard_headers(pendulum_fmu, fmi_version, tmp_path, require_tool):
+    """Compile the wrapper against the FMI headers FMPy ships: any signature that differs from the
+    standard's declaration is a conflicting-types error, a missing function a missing symbol."""
+    gcc = require_tool("gcc")
+    with zipfile.ZipFile(pendulum_fmu) as archive:
+        archive.extractall(tmp_path)
+    headers = Path(fmpy.__file__).parent / "c-code"
+    sources = sorted(str(p) for p in (tmp_path / "sources").glob("*.c"))
+    macro = f"-DLCG_FMI{fmi_version[0]}_STANDARD_HEADERS"
+    run = subprocess.run([gcc, "-std=c99", "-Wall", "-Wextra", "-Wpedantic", "-Werror", macro,
+                          "-I", str(headers), "-I", str(tmp_path / "sources"), "-fPIC", "-shared", *sources,
+                          "-o", str(tmp_path / "check.so"), "-lm"], capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr
+    # every function the standard declares is defined (its header lists them as #define fmiNName)
+    header = (headers / f"fmi{fmi_version[0]}Functions.h").read_text()
+    declared = set(re.findall(rf"#define (fmi{fmi_version[0]}[A-Z]\w*)\s+fmi{fmi_version[0]}FullName", header))
+    symbols = subprocess.run(["nm", "-D", "--defined-only", str(tmp_path / "check.so")], capture_output=True,
+                             text=True).stdout.split()
+    assert len(declared) > 40 and declared <= set(symbols), declared - set(symbols)
+
+
+def test_the_fmu_builds_from_its_sources(pendulum_fmu, tmp_path, require_tool):
+    require_tool("cmake")
+    from fmpy.build import build_platform_binary
+
+    with zipfile.ZipFile(pendulum_fmu) as archive:
+        archive.extractall(tmp_path / "fmu")
+    shutil.rmtree(tmp_path / "fmu" / "binaries")
+    (tmp_path / "build").mkdir()
+    build_platform_binary(tmp_path / "fmu", build_dir=tmp_path / "build")
+    rebuilt = simulate_fmu(str(tmp_path / "fmu"), stop_time=1.0, output_interval=0.01, output=list(STATES))
+    shipped = simulate_fmu(str(pendulum_fmu), stop_time=1.0, output_interval=0.01, output=list(STATES))
+    assert np.max(np.abs(states(rebuilt) - states(shipped))) <= 1e-12
+
+
+@pytest.mark.parametrize("version", ["2.0", "3.0"])
+def test_the_cli_writes_an_fmu_fmpy_reads(tmp_path, capsys, version):
+    out = tmp_path / "x.fmu"
+    assert main(["fmu", "double_pendulum", "--out", str(out), "--x0", "q1=1", "--no-binary",
+                 "--fmi-version", version, "--fixed", "g=9.81"]) == 0
+    assert "wrote" in capsys.readouterr().out
+    description = read_model_description(str(out))
+    assert description.coSimulation.modelIdentifier == "lcg_double_pendulum" and description.modelExchange
+    assert description.fmiVersion == version and validate_fmu(str(out)) == []
+    variables = {v.name: v for v in description.modelVariables}
+    assert variables["q1"].start == "1.0" and variables["m1"].variability == "tunable"
+    assert (variables["g"].causality, variables["g"].variability, variables["g"].start) == ("local", "constant", "9.81")
+
+
+def test_the_docstring_example_runs():
+    from lagcodegen.export import fmu
+
+    runner = doctest.DocTestRunner(optionflags=doctest.NORMALIZE_WHITESPACE)
+    for test in doctest.DocTestFinder(recurse=False).find(fmu.export_fmu, "export_fmu"):
+        runner.run(test)
+    assert runner.tries and runner.failures == 0
+
+
+# -- bad input ----------------------------------------------------------------------------------
+def test_an_output_path_that_is_a_directory_is_named(pendulum, tmp_path):
+    with pytest.raises(FmuError, match=f"FMU path '{tmp_path}' is a directory"):
+        export_fmu(pendulum, tmp_path)
+    with pytest.raises(FmuError, match="its folder .*missing.* does not exist"):
+        export_fmu(pendulum, tmp_path / "missing" / "x.fmu")
+
+
+def test_a_parameter_without_a_value_is_named(tmp_path):
+    x = me.dynamicsymbols("x")
+    m, k = sp.symbols("m k", positive=True)
+    model = Model("spring", [x], [m, k], kinetic_energy=m * x.diff() ** 2 / 2, potential_energy=k * x ** 2 / 2,
+                  parameter_values={"m": 1.0})
+    with pytest.raises(FmuError, match=r"parameter\(s\) 'k' of 'spring' have no value, and an FMI parameter needs a "
+                                       r"constant start value"):
+        export_fmu(model, tmp_path / "spring.fmu", binary=False)
+
+
+def test_bad_start_values_and_methods_are_named(pendulum, tmp_path):
+    with pytest.raises(FmuError, match="'theta' is not a free parameter of 'double_pendulum'"):
+        export_fmu(pendulum, tmp_path / "a.fmu", params={"theta": 1.0})
+    with pytest.raises(FmuError, match=r"x0\['q1'\] must be a finite real number"):
+        export_fmu(pendulum, tmp_path / "a.fmu", x0={"q1": float("nan")})
+    with pytest.raises(FmuError, match="x0: 'q3' is not a state of 'double_pendulum'"):
+        export_fmu(pendulum, tmp_path / "a.fmu", x0={"q3": 1.0})
+    with pytest.raises(FmuError, match="method 'symplectic_euler' is not compiled into 'double_pendulum'"):
+        export_fmu(pendulum, tmp_path / "a.fmu", method="symplectic_euler")
+    with pytest.raises(FmuError, match="step must be a positive finite number, got 0"):
+        export_fmu(pendulum, tmp_path / "a.fmu", step=0)
+    assert not list(tmp_path.iterdir())
+
+
+def test_a_variable_name_taken_twice_is_named(driven_oscillator, tmp_path):
+    model = driven_oscillator("clash", measurements={"energy": lambda x, F, m, k, c: k * x ** 2 / 2})
+    with pytest.raises(VariableError, match="'energy' is taken twice: by the energy and by the measurement"):
+        export_fmu(model, tmp_path / "a.fmu", binary=False)
+
+
+def test_the_cli_names_an_unknown_model_and_a_directory(tmp_path, capsys):
+    assert main(["fmu", "no_such_model", "--out", str(tmp_path / "x.fmu")]) == 2
+    assert "model 'no_such_model' is neither an example" in capsys.readouterr().err
+    assert main(["fmu", "double_pendulum", "--out", str(tmp_path)]) == 2
+    assert f"FMU path '{tmp_path}' is a directory" in capsys.readouterr().err
