@@ -237,7 +237,7 @@ def _wrapper_source(sources: CSources, table, guid: str, method: str, step: floa
     context = {
         "version": __version__, "model": comment_text(layout.model), "prefix": layout.prefix,
         "macro": layout.prefix.upper(), "header_name": sources.header_name, "source_name": source_name,
-        "key": sources.source_key, "guid": guid, "method": method, "n_state": 2 * layout.n,
+        "key": sources.source_key, "guid": guid, "method": method, "n_state": layout.n_state,
         "p_size": max(1, len(layout.parameters)), "r_size": max(1, len(layout.inputs)),
         "point_size": max(1, 3 * len(layout.points)), "y_size": max(1, len(layout.measurements)),
         "fixed_size": max(1, len(layout.fixed)), "has_fixed": bool(layout.fixed),

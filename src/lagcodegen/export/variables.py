@@ -115,7 +115,7 @@ def fmi_variables(layout, x0, p, h: float, *, method: str, has_energy: bool,
 
     states = layout.coordinates + layout.speeds
     for i, name in enumerate(states):
-        what = "coordinate" if i < layout.n else "speed"
+        what = "coordinate" if i < layout.n_q else "speed"
         add(name, "state", f"{what} x[{i}]", float(x0[i]))
     for i, name in enumerate(states):
         add(f"der({name})", "derivative", f"time derivative of {name}", derivative_of=i + 1)
