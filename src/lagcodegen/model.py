@@ -28,6 +28,8 @@ TIME = me.dynamicsymbols._t
 ROUTE_ENERGIES = "energies"
 ROUTE_BODIES = "bodies"
 ROUTE_SYMPY = "sympy"
+#: how velocity constraints with dependent speeds enter (Model.formulation; None: elimination when possible)
+FORMULATIONS = (None, "elimination", "multipliers")
 
 
 class ModelError(ValueError):
@@ -117,6 +119,13 @@ class Model:
         multipliers as for the holonomic ones (the first kind extended to velocity constraints):
         ``M ud + A^T lambda = F`` with A stacking dphi/dq and the rows a; their multipliers are the
         constraint forces, Baumgarte's alpha and the projection act on them too.
+    formulation : {None, "elimination", "multipliers"}, optional
+        How velocity constraints with named dependent speeds (Kane's ``u_dependent``) enter the
+        equations: ``"elimination"`` (the default then) keeps the independent speeds in the state
+        and computes the dependent ones from the constraints at every evaluation (Kane's minimal
+        ODE; a singular constraint Jacobian in them is the status LCG_SINGULAR_CONSTRAINTS);
+        ``"multipliers"`` keeps every speed in the state and adds the constraint forces (Lagrange I).
+        Models without dependent speeds always use multipliers.
     measurements : mapping name -> Expr, optional
         Output expressions y = h(q, qd, r, t) (sensor readings, a spring force, a contact
         point's coordinate): compiled into one C function ``<prefix>_measurements`` and recorded
@@ -156,6 +165,7 @@ class Model:
     measurements: Mapping[str, Any] = field(default_factory=dict)
     motion_constraints: Sequence[Any] = ()
     links: Sequence[Any] = ()
+    formulation: str | None = None
 
     def __post_init__(self) -> None:
         self._check_name()
@@ -185,6 +195,9 @@ class Model:
         set_("motion_constraints", tuple(_as_expr(c, f"motion constraint {i}")
                                          for i, c in enumerate(self.motion_constraints)))
         set_("links", self._checked_links())
+        if self.formulation not in FORMULATIONS:
+            raise ModelError(f"formulation must be one of {', '.join(map(repr, FORMULATIONS))}, "
+                             f"got {self.formulation!r}")
         self._check_route()
         self._check_connected()
         self._check_symbols()

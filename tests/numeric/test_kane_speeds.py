@@ -19,7 +19,7 @@ from scipy.integrate import solve_ivp
 
 from lagcodegen import Model, derive_equations
 from lagcodegen.pipeline import compile_model
-from lagcodegen.run.simulate import c_pointer, parameter_vector, simulate, step_jacobians
+from lagcodegen.run.simulate import c_pointer, dependent_speeds, parameter_vector, simulate, step_jacobians
 from lagcodegen.run.sweep import sweep
 
 pytestmark = pytest.mark.compiler
@@ -212,9 +212,9 @@ def test_auxiliary_speeds_stay_out_of_the_state():
     assert not {str(s) for s in eom.forcing.free_symbols} & {"u4", "u5"}
 
 
-def test_wheel_with_a_dependent_speed_rolls_as_by_hand():
-    """A wheel rolling on a line (theta' = -x'/r) pushed by a constant force F at its hub: by hand,
-    x'' = F / (m + I / r^2) = 2 F / (3 m) for I = m r^2 / 2, theta = -x / r. It was refused."""
+def _wheel(constraint=None, **model_options):
+    """A wheel rolling on a line (theta' = -x'/r) pushed by a constant force F at its hub (Kane,
+    u_theta dependent)."""
     t = me.dynamicsymbols._t
     xw, theta, ux, utheta = me.dynamicsymbols("x_w theta u_x u_theta")
     m, r, F = sp.symbols("m r F", positive=True)
@@ -224,12 +224,66 @@ def test_wheel_with_a_dependent_speed_rolls_as_by_hand():
     P = me.Point("P")
     P.set_vel(N, ux * N.x)
     wheel = me.RigidBody("wheel", P, W, m, (me.inertia(W, 1, 1, m * r ** 2 / 2), P))
+    rolling = utheta + ux / r if constraint is None else constraint(utheta, ux, theta, r)
     kane = me.KanesMethod(N, q_ind=[xw, theta], u_ind=[ux], u_dependent=[utheta],
-                          kd_eqs=[xw.diff(t) - ux, theta.diff(t) - utheta], velocity_constraints=[utheta + ux / r])
+                          kd_eqs=[xw.diff(t) - ux, theta.diff(t) - utheta], velocity_constraints=[rolling])
     kane.kanes_equations([wheel], [(P, F * N.x)])
-    system = compile_model(Model("wheel", parameters=[m, r, F], sympy_model=kane), outputs=["rhs"], methods=["rk4"])
-    values = {"m": 2.0, "r": 0.5, "F": 3.0}
-    run = simulate(system, [0.0, 0.0, 1.0, -2.0], 2.0, 1e-3, params=values)
-    a = 2 * 3.0 / (3 * 2.0)
-    x_end, v_end = 1.0 * 2.0 + a * 2.0 ** 2 / 2, 1.0 + a * 2.0
-    np.testing.assert_allclose(run.x[-1], [x_end, -x_end / 0.5, v_end, -v_end / 0.5], rtol=1e-12, atol=1e-12)
+    return Model("wheel", parameters=[m, r, F], sympy_model=kane, frame=N, **model_options)
+
+
+WHEEL = {"m": 2.0, "r": 0.5, "F": 3.0}
+
+
+def _wheel_by_hand(t_end, v0=1.0):
+    """x'' = F / (m + I / r^2) = 2 F / (3 m) for I = m r^2 / 2; theta = -x / r."""
+    a = 2 * WHEEL["F"] / (3 * WHEEL["m"])
+    x, v = v0 * t_end + a * t_end ** 2 / 2, v0 + a * t_end
+    return x, -x / WHEEL["r"], v, -v / WHEEL["r"]
+
+
+def test_wheel_with_its_dependent_speed_eliminated_rolls_as_by_hand():
+    # Kane's dependent speeds used to be refused; elimination is the default formulation.
+    model = _wheel()
+    assert derive_equations(model).n_dependent == 1
+    system = compile_model(model, outputs=["rhs", "energy"], methods=["rk4"])
+    assert system.layout.speeds == ("u_x",) and system.layout.dependent_speeds == ("u_theta",)
+    assert " * Dependent speeds, not in x" in system.sources.header
+    assert " *   u_dep[0] = u_theta\n" in system.sources.header and "x[2] = u_x (speed)" in system.sources.header
+    run = simulate(system, [0.0, 0.0, 1.0], 2.0, 1e-3, params=WHEEL, energy=True)
+    x, theta, v, w = _wheel_by_hand(2.0)
+    np.testing.assert_allclose(run.x[-1], [x, theta, v], rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(dependent_speeds(system, run.x, WHEEL), -run.x[:, 2:] / WHEEL["r"], rtol=1e-14)
+    np.testing.assert_allclose(run.energy[-1] - run.energy[0], WHEEL["F"] * x, rtol=1e-10)  # the work of F
+
+
+def test_wheel_with_multipliers_keeps_every_speed():
+    system = compile_model(_wheel(formulation="multipliers"), outputs=["rhs", "multipliers"], methods=["rk4"])
+    assert system.layout.speeds == ("u_x", "u_theta") and not system.layout.dependent_speeds
+    run = simulate(system, [0.0, 0.0, 1.0, -2.0], 2.0, 1e-3, params=WHEEL)
+    np.testing.assert_allclose(run.x[-1], _wheel_by_hand(2.0), rtol=1e-12, atol=1e-12)
+
+
+def test_a_singular_constraint_jacobian_in_the_dependent_speeds_is_named():
+    # u_theta sin(theta) + u_x / r = 0: at theta = 0 the constraint does not fix u_theta.
+    system = compile_model(_wheel(lambda utheta, ux, theta, r: utheta * sp.sin(theta) + ux / r),
+                           outputs=["rhs"], methods=["rk4"])
+    with pytest.raises(ValueError, match=r"dependent speeds u_theta at t = 0.0, x = \[0\. 0\. 1\.\]: .*singular"):
+        simulate(system, [0.0, 0.0, 1.0], 1.0, 1e-3, params=WHEEL)
+    with pytest.raises(ValueError, match="singular"):
+        dependent_speeds(system, [0.0, 0.0, 1.0], WHEEL)
+    # from theta = 1 the wheel turns towards sin(theta) = 0, where u_theta = -u_x / (r sin(theta))
+    # grows without bound: the run stops there with a status, not with NaN or a wrong OK
+    with pytest.warns(RuntimeWarning, match="stopped"):
+        run = simulate(system, [0.0, 1.0, 1.0], 50.0, 1e-3, params=WHEEL)
+    assert run.status.name in ("SINGULAR_CONSTRAINTS", "SINGULAR_MASS_MATRIX"), run.status
+    assert abs(np.sin(run.x[-1, 1])) < 0.05 and np.all(np.isfinite(run.x))
+
+
+def test_elimination_is_refused_where_it_cannot_apply():
+    from lagcodegen import ModelError
+    with pytest.raises(ModelError, match="formulation must be one of"):
+        _wheel(formulation="kane")
+    x = me.dynamicsymbols("x")
+    with pytest.raises(ModelError, match="formulation 'elimination' needs named dependent speeds"):
+        derive_equations(Model("slider", [x], [], kinetic_energy=x.diff() ** 2 / 2,
+                               motion_constraints=[x.diff() - 1], formulation="elimination"))

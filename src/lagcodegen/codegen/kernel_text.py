@@ -22,6 +22,8 @@ RESERVED = {"t", "x", "p", "out", "M", "F", "ud", "qd", "xdot", "B", "J", "c", "
 #: ... and those of the functions of a model with inputs or measurements (only then, so that the
 #: names of the other models' symbols do not change)
 DRIVEN_RESERVED = {"r", "dr", "rs", "r0", "r1", "y", "Fx", "Fr", "Jr", "hold", "inputs", "context"}
+#: ... and those of the functions of a model whose dependent speeds are eliminated
+DEPENDENT_RESERVED = {"u_dep", "dep_status", "AD", "b", "Mfull", "Fvec", "gamma"}
 
 
 @dataclass(frozen=True)
@@ -34,6 +36,7 @@ class Names:
     param_index: dict  # Symbol -> index into p
     accel_index: dict  # Symbol -> index into ud (jacobian kernel only)
     input_index: dict = None  # Symbol -> index into r (models with inputs)
+    dependent_index: dict = None  # Symbol -> index into u_dep (eliminated dependent speeds)
 
 
 def _solver_locals(n: int) -> set:
@@ -48,14 +51,16 @@ def _solver_locals(n: int) -> set:
 
 def names_for(system: ReducedSystem, model_name: str) -> Names:
     """C names of ``system``'s symbols (CSE temporaries first), clear of the generated code's own."""
-    taken = set(RESERVED) | _solver_locals(max(len(system.q), len(system.u)))
+    taken = set(RESERVED) | _solver_locals(max(len(system.q), len(system.u) + len(system.u_dependent)))
     if system.inputs or system.measurements:
         taken |= DRIVEN_RESERVED
+    if system.u_dependent:
+        taken |= DEPENDENT_RESERVED
     temporaries = [s for k in system.kernels for s, _ in k.temporaries]
     symbols = {}
     for s in dict.fromkeys(temporaries):  # cse names first: tmp0, tmp1, ...
         symbols[s] = mangle(s.name, taken)
-    for s in system.q + system.u + system.inputs + system.free_parameters + system.accelerations:
+    for s in system.q + system.u + system.u_dependent + system.inputs + system.free_parameters + system.accelerations:
         symbols[s] = mangle(s.name, taken)
     symbols[system.t] = "t"
     prefix = "lcg_" + mangle(model_name)
@@ -63,8 +68,9 @@ def names_for(system: ReducedSystem, model_name: str) -> Names:
     params = {s: i for i, s in enumerate(system.free_parameters)}
     accel = {s: i for i, s in enumerate(system.accelerations)}
     inputs = {s: i for i, s in enumerate(system.inputs)}
+    dependent = {s: i for i, s in enumerate(system.u_dependent)} or None
     return Names(prefix=prefix, symbols=symbols, state_index=state, param_index=params, accel_index=accel,
-                 input_index=inputs)
+                 input_index=inputs, dependent_index=dependent)
 
 
 @dataclass(frozen=True)
@@ -91,6 +97,15 @@ class KernelWriter:
     @property
     def n_state(self) -> int:
         return len(self.system.q) + len(self.system.u)
+
+    @property
+    def n_dependent(self) -> int:
+        return len(self.system.u_dependent)
+
+    @property
+    def n_m(self) -> int:
+        """Size of M and F: the state's speeds and the eliminated dependent ones."""
+        return len(self.system.u) + len(self.system.u_dependent)
 
     @property
     def n_inputs(self) -> int:
@@ -121,18 +136,41 @@ class KernelWriter:
         except ValueError as err:
             raise EmitError(f"cannot print {where}: {err}") from err
 
-    def head(self, kernel: ReducedKernel, touches_state: bool = False, reads_inputs: bool = False) -> list:
+    def head(self, kernel: ReducedKernel, touches_state: bool = False, reads_inputs: bool = False,
+             on_singular: str | None = None) -> list:
         """Input aliases, (void) casts of unused arguments and the CSE temporaries of ``kernel``
-        (``reads_inputs``: the function has the argument ``r``)."""
+        (``reads_inputs``: the function has the argument ``r``). A kernel that reads eliminated
+        dependent speeds first solves for them; ``on_singular`` is the statement run when that
+        solve fails (else their NaN values carry on)."""
         inputs, unused = self._input_lines(kernel, reads_inputs)
         if touches_state and "x" in unused:
             unused.remove("x")
-        lines = [f"/* Inputs ({len(inputs)}) */"] + inputs
+        dependent = self._dependent_lines(kernel, on_singular)
+        if dependent and "x" in unused:
+            unused.remove("x")
+        if dependent and "p" in unused:
+            unused.remove("p")
+        if dependent and "t" in unused:
+            unused.remove("t")
+        lines = [f"/* Inputs ({len(inputs)}) */"] + inputs + dependent
         lines += [f"(void){arg};" for arg in unused]
         lines.append(f"/* Intermediate terms ({len(kernel.temporaries)}), total ops {kernel.ops_after} "
                      f"(before CSE {kernel.ops_before}) */")
         for s, expr in kernel.temporaries:
             lines.append(f"const {self.real} {self.names.symbols[s]} = {self.expr(expr, self.names.symbols[s])};")
+        return lines
+
+    def _dependent_lines(self, kernel: ReducedKernel, on_singular: str | None) -> list:
+        """The eliminated dependent speeds the kernel reads, from ``<prefix>_dependent_speeds``."""
+        index = self.names.dependent_index or {}
+        if not any(s in kernel.symbols for s in index):
+            return []
+        real = self.real
+        lines = [f"{real} u_dep[{len(index)}];",
+                 f"const int dep_status = {self.prefix}_dependent_speeds(t, x, p, u_dep);"]
+        lines.append(f"if (dep_status != LCG_OK) {on_singular}" if on_singular else "(void)dep_status;")
+        lines += [f"const {real} {self.names.symbols[s]} = u_dep[{i}];" for s, i in index.items()
+                  if s in kernel.symbols]
         return lines
 
     def _input_lines(self, kernel: ReducedKernel, reads_inputs: bool) -> tuple[list, list]:

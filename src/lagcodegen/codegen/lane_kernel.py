@@ -67,7 +67,8 @@ def lanes_apply(system, methods) -> bool:
     sweep over input amplitudes); inputs that vary in time run on the scalar sweep."""
     from ..integrators.schemes import get_scheme
 
-    return any(get_scheme(m).lane_capable for m in methods) and not system.n_constraints and "rhs" in system.outputs
+    return any(get_scheme(m).lane_capable for m in methods) and not system.n_constraints and \
+        not system.u_dependent and "rhs" in system.outputs
 
 
 def lane_context(system, names, real: str, methods: list, lanes: int, trig: str = "fast") -> dict:

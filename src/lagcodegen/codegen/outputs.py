@@ -38,7 +38,7 @@ def _forcing_rows(eom: EquationsOfMotion) -> list:
 
 
 def _dynamics_rows(eom: EquationsOfMotion, accelerations) -> list:
-    kinematics = [] if list(eom.kinematics) == list(eom.u) else \
+    kinematics = [] if list(eom.kinematics) == list(eom.u) and not eom.n_dependent else \
         [(("K", j, 0), eom.kinematics[j]) for j in range(eom.n_q)]
     return kinematics + _mass_rows(eom) + _forcing_rows(eom) + _constraint_rows(eom, with_bias=True)
 
@@ -52,6 +52,15 @@ def _constraint_rows(eom: EquationsOfMotion, with_bias: bool) -> list:
         return rows + [(("C", i, 0), eom.constraint_bias[i]) for i in range(m)]
     return rows + [(("R", i, 0), eom.constraints[i]) for i in range(m)] + \
         [(("T", i, 0), eom.constraint_rate[i]) for i in range(m)]
+
+
+def _dependent_rows(eom: EquationsOfMotion) -> list:
+    """("AD", i, j) = A[i, p + j], the constraint Jacobian in the dependent speeds, and ("BI", i, 0)
+    = the rest of the row, sum_k<p A[i, k] u_k + b_i (p independent speeds): A_D u_dep = -BI."""
+    A, u, p = eom.constraint_jacobian, eom.u, eom.n_u - eom.n_dependent
+    rows = [(("AD", i, j), A[i, p + j]) for i in range(eom.m) for j in range(eom.n_dependent)]
+    return rows + [(("BI", i, 0), sp.Add(*[A[i, k] * u[k] for k in range(p)]) + eom.constraint_rate[i])
+                   for i in range(eom.m)]
 
 
 def _jacobian_rows(eom: EquationsOfMotion, a) -> list:
@@ -110,6 +119,7 @@ KERNEL_ROWS: dict[str, Callable] = {
     "momentum": lambda eom, a: _momentum_rows(eom),
     "points": lambda eom, a: _point_rows(eom),
     "measurements": lambda eom, a: [(("Y", i, 0), y) for i, (_, y) in enumerate(eom.measurements)],
+    "dependent": lambda eom, a: _dependent_rows(eom),
 }
 
 
@@ -148,11 +158,17 @@ def _energy_obstacle(eom: EquationsOfMotion) -> str | None:
 
 def _needs_constraints(output: str) -> Callable[[EquationsOfMotion], str | None]:
     def obstacle(eom: EquationsOfMotion) -> str | None:
+        if eom.n_dependent:
+            return (f"output {output!r} needs constraints with multipliers; model {eom.name!r} eliminates its "
+                    "dependent speeds (Model(..., formulation='multipliers') keeps them)")
         return None if eom.m else f"output {output!r} needs holonomic constraints; model {eom.name!r} has none"
     return obstacle
 
 
 def _jacobian_obstacle(eom: EquationsOfMotion) -> str | None:
+    if eom.n_dependent:
+        return (f"the jacobian output (implicit methods) is not available for {eom.name!r}, whose dependent "
+                "speeds are eliminated, yet; use an explicit method")
     if eom.m:
         return (f"the jacobian output (implicit methods) is not available for the constrained model "
                 f"{eom.name!r} yet; use an explicit method")
@@ -175,7 +191,7 @@ def _momentum_obstacle_message(eom: EquationsOfMotion) -> str | None:
 
 # -- C bodies, one writer per output --------------------------------------------------------------
 def _mass_matrix_c(w: KernelWriter, kernel) -> dict:
-    n = w.n_u
+    n = w.n_m
     body = w.head(kernel) + ["/* Mass matrix, lower triangle, mirrored */"]
     for (j, k), expr in results(kernel, "M").items():
         body.append(f"M[{j * n + k}] = {w.expr(expr, f'M[{j}][{k}]')};  /* M[{j}][{k}] */")
@@ -191,7 +207,7 @@ def _forcing_c(w: KernelWriter, kernel) -> dict:
         body.append(f"F[{j}] = {w.expr(expr, f'F[{j}]')};")
     what = "F(q, u, r, t)" if w.n_inputs else "F(q, u, t)"
     return record("void", f"{w.prefix}_forcing", f"{w.driven_arguments}, {w.real} *F",
-                  f"Forcing {what}, {w.n_u} values.", body)
+                  f"Forcing {what}, {w.n_m} values.", body)
 
 
 def _accel_c(w: KernelWriter, kernel) -> dict:
@@ -296,6 +312,26 @@ def _jacobian_c(w: KernelWriter, kernel) -> dict:
                   "returns a status code.", body)
 
 
+def _dependent_speeds_c(w: KernelWriter, kernel) -> dict:
+    """u_dep from A_D u_dep = -(A_I u + b), by LU with partial pivoting (`_dense_solve_function`)."""
+    m, real, prefix = w.n_dependent, w.real, w.prefix
+    names = ", ".join(s.name for s in w.system.u_dependent)
+    body = w.head(kernel) + [f"{real} AD[{m * m}], b[{m}];", "int i;",
+                             "/* A_D (the constraint Jacobian in the dependent speeds) and -(A_I u + b) */"]
+    body += [f"AD[{i * m + j}] = {w.expr(e, f'A_D[{i}][{j}]')};" for (i, j), e in results(kernel, "AD").items()]
+    body += [f"b[{i}] = -({w.expr(e, f'row {i}')});" for (i, _), e in results(kernel, "BI").items()]
+    body += [f"if ({prefix}_dense_solve(AD, b, {m}, 1)) {{",
+             f"    for (i = 0; i < {m}; ++i) u_dep[i] = b[i];",
+             f"    return {prefix}_finite_result(LCG_OK, u_dep, {m});",
+             "}",
+             f"for (i = 0; i < {m}; ++i) u_dep[i] = {literal(0, real)} / {literal(0, real)};",
+             "return LCG_SINGULAR_CONSTRAINTS;"]
+    return record("int", f"{prefix}_dependent_speeds", f"{w.arguments}, {real} *u_dep",
+                  f"The {m} dependent speeds ({names}) from the velocity constraints A u + b = 0; returns a "
+                  "status code (LCG_SINGULAR_CONSTRAINTS, and NaN values, when the constraint Jacobian in "
+                  "them is singular).", body)
+
+
 def _multipliers_c(w: KernelWriter, kernel) -> dict:
     n, prefix, real, m = w.n_u, w.prefix, w.real, w.system.n_constraints
     body = [f"{real} qd[{w.n_q}], ud[{n}];",
@@ -388,6 +424,8 @@ OUTPUTS: dict[str, Output] = {o.name: o for o in (
            constrained=True),
     Output("step_jacobian", "jacobian", lambda w, kernel: None, obstacle=_step_jacobian_obstacle,
            requires=("jacobian",)),
+    Output("dependent_speeds", "dependent", _dependent_speeds_c, empty=lambda eom: not eom.n_dependent,
+           checked=True, default=True),
 )}
 DEFAULT_OUTPUTS = tuple(name for name, o in OUTPUTS.items() if o.default)
 
@@ -409,6 +447,8 @@ def checked_outputs(eom: EquationsOfMotion, outputs) -> list:
                 chosen.append(needed)
     if not chosen:
         raise KernelError("no outputs requested")
+    if eom.n_dependent and "dependent_speeds" not in chosen:  # every kernel reading them calls it
+        chosen.insert(0, "dependent_speeds")
     return chosen
 
 
@@ -416,7 +456,7 @@ def applicable_outputs(eom: EquationsOfMotion, wanted) -> list:
     """The outputs of ``wanted`` that apply to ``eom``, then those every model of its kind gets
     (constraint terms and multipliers of a constrained model)."""
     chosen = [name for name in wanted if OUTPUTS[name].obstacle(eom) is None]
-    if eom.m:
+    if eom.m and not eom.n_dependent:
         chosen += [name for name, o in OUTPUTS.items() if o.constrained and name not in chosen]
     return chosen
 
@@ -436,6 +476,10 @@ def support_functions(w: KernelWriter) -> list:
     functions = []
     if any(o.checked for o in outputs):
         functions.append(_finite_result_function(w))
+    if w.n_dependent:
+        functions.append(_dense_solve_function(w))
+        if any(o.kernel == "dynamics" for o in outputs):
+            functions.append(_eliminated_solve_function(w))
     if any(o.kernel == "dynamics" for o in outputs):
         functions += _dynamics_functions(w)
         if w.system.n_constraints and any(o.calls_dynamics for o in outputs):
@@ -447,6 +491,109 @@ def support_functions(w: KernelWriter) -> list:
                 [f"{real} lam[{m}];", f"return {prefix}_dynamics_constrained(t, x, {w.rp}, qd, ud, lam, 0, gauge);"],
                 static=True))
     return functions
+
+
+def _dense_solve_function(w: KernelWriter) -> dict:
+    """LU with partial pivoting of a small dense A (n x n) against ``cols`` right-hand sides B
+    (row-major n x cols), both overwritten (B by the solution); 0 when a pivot is not above
+    rank_tolerance times the largest |entry| of A (the dependent speeds' Jacobian lost rank)."""
+    real, zero = w.real, literal(0, w.real)
+    tolerance = literal(1e-12 if real == "double" else 1e-6, real)
+    fabs = "fabsf" if real == "float" else "fabs"
+    body = [f"{real} scale = {zero};", "int i, j, k, c;",
+            "for (i = 0; i < n * n; ++i) {",
+            f"    if ({fabs}(A[i]) > scale) scale = {fabs}(A[i]);",
+            "}",
+            f"if (!(scale > {zero}) || !isfinite(scale)) return 0;",
+            "for (k = 0; k < n; ++k) {",
+            "    int pivot = k;",
+            "    for (i = k + 1; i < n; ++i) {",
+            f"        if ({fabs}(A[i * n + k]) > {fabs}(A[pivot * n + k])) pivot = i;",
+            "    }",
+            f"    if (!({fabs}(A[pivot * n + k]) > {tolerance} * scale)) return 0;",
+            "    if (pivot != k) {",
+            "        for (j = 0; j < n; ++j) {",
+            f"            const {real} swap = A[k * n + j];",
+            "            A[k * n + j] = A[pivot * n + j];",
+            "            A[pivot * n + j] = swap;",
+            "        }",
+            "        for (c = 0; c < cols; ++c) {",
+            f"            const {real} swap = B[k * cols + c];",
+            "            B[k * cols + c] = B[pivot * cols + c];",
+            "            B[pivot * cols + c] = swap;",
+            "        }",
+            "    }",
+            "    for (i = k + 1; i < n; ++i) {",
+            f"        const {real} factor = A[i * n + k] / A[k * n + k];",
+            "        for (j = k + 1; j < n; ++j) A[i * n + j] -= factor * A[k * n + j];",
+            "        for (c = 0; c < cols; ++c) B[i * cols + c] -= factor * B[k * cols + c];",
+            "    }",
+            "}",
+            "for (k = n - 1; k >= 0; --k) {",
+            "    for (c = 0; c < cols; ++c) {",
+            f"        {real} acc = B[k * cols + c];",
+            "        for (j = k + 1; j < n; ++j) acc -= A[k * n + j] * B[j * cols + c];",
+            "        B[k * cols + c] = acc / A[k * n + k];",
+            "    }",
+            "}",
+            "return 1;"]
+    return record("int", f"{w.prefix}_dense_solve", f"{real} *A, {real} *B, int n, int cols",
+                  "Solve A X = B in place (LU, partial pivoting); 0 when A is singular to rank_tolerance.",
+                  body, static=True)
+
+
+def _eliminated_solve_function(w: KernelWriter) -> dict:
+    """Kane's minimal equations from the unreduced ones: with A = [A_I A_D] (independent, dependent
+    columns), u = C u_I + c, C = [I; -A_D^-1 A_I], and ud = C ud_I + g, g = [0; A_D^-1 gamma] from
+    A ud = gamma: (C^T M C) ud_I = C^T (F - M g), by Cholesky (Kane and Levinson, Dynamics: Theory
+    and Applications, sec. 6.1; the reduced M is positive definite when M is on the null space of A)."""
+    real, prefix, zero = w.real, w.prefix, literal(0, w.real)
+    n, m, p = w.n_m, w.n_dependent, w.n_u
+    W = p + 1
+    body = [f"{real} AD[{m * m}], X[{m * W}], MC[{n * p}], Mr[{p * p}], Fr[{p}], rest[{n}];", "int i, j, k;",
+            "/* X = A_D^-1 [-A_I, gamma]: its first p columns are -A_D^-1 A_I, the last g_D */",
+            f"for (i = 0; i < {m}; ++i) {{",
+            f"    for (j = 0; j < {m}; ++j) AD[i * {m} + j] = A[i * {n} + {p} + j];",
+            f"    for (j = 0; j < {p}; ++j) X[i * {W} + j] = -A[i * {n} + j];",
+            f"    X[i * {W} + {p}] = gamma[i];",
+            "}",
+            f"if (!{prefix}_dense_solve(AD, X, {m}, {W})) return LCG_SINGULAR_CONSTRAINTS;",
+            "/* rest = F - M g; MC = M C */",
+            f"for (i = 0; i < {n}; ++i) {{",
+            f"    {real} acc = F[i];",
+            f"    for (k = 0; k < {m}; ++k) acc -= M[i * {n} + {p} + k] * X[k * {W} + {p}];",
+            "    rest[i] = acc;",
+            f"    for (j = 0; j < {p}; ++j) {{",
+            f"        {real} sum = M[i * {n} + j];",
+            f"        for (k = 0; k < {m}; ++k) sum += M[i * {n} + {p} + k] * X[k * {W} + j];",
+            f"        MC[i * {p} + j] = sum;",
+            "    }",
+            "}",
+            "/* Mr = C^T M C, Fr = C^T rest */",
+            f"for (i = 0; i < {p}; ++i) {{",
+            f"    {real} acc = rest[i];",
+            f"    for (k = 0; k < {m}; ++k) acc += X[k * {W} + i] * rest[{p} + k];",
+            "    Fr[i] = acc;",
+            f"    for (j = 0; j < {p}; ++j) {{",
+            f"        {real} sum = MC[i * {p} + j];",
+            f"        for (k = 0; k < {m}; ++k) sum += X[k * {W} + i] * MC[({p} + k) * {p} + j];",
+            f"        Mr[i * {p} + j] = sum;",
+            "    }",
+            "}",
+            f"i = {prefix}_spd_factor(Mr, {p}, {zero});",
+            "if (i != 1) return i == 0 ? LCG_SINGULAR_MASS_MATRIX : LCG_NONFINITE_STATE;",
+            "if (gauge) {  /* pivots of the reduced M, for the drivers' singularity monitor */",
+            f"    for (i = 0; i < {p}; ++i) gauge[i] = Mr[i * {p} + i] * Mr[i * {p} + i];",
+            "}",
+            f"{prefix}_spd_solve(Mr, Fr, {p});",
+            f"for (i = 0; i < {p}; ++i) ud[i] = Fr[i];",
+            "return LCG_OK;"]
+    return record("int", f"{prefix}_eliminated_solve",
+                  f"const {real} *M, const {real} *F, const {real} *A, const {real} *gamma, {real} *ud, "
+                  f"{real} *gauge",
+                  f"ud of the {p} independent speeds from M ({n} x {n}), F, the constraint Jacobian A "
+                  f"({m} x {n}) and gamma (A ud = gamma); gauge (or NULL) receives the {p} pivots of "
+                  "C^T M C.", body, static=True)
 
 
 def _finite_result_function(w: KernelWriter) -> dict:
@@ -463,9 +610,10 @@ def _finite_result_function(w: KernelWriter) -> dict:
 def _dynamics_functions(w: KernelWriter) -> list:
     """Static kernel behind accel and rhs: K, M, F with joint CSE, then an unrolled LDL^T solve
     (with an always-inlined copy for the explicit steppers when it is small, `hot_dynamics`)."""
-    system, real, prefix, n = w.system, w.real, w.prefix, w.n_u
+    system, real, prefix, n = w.system, w.real, w.prefix, w.n_m
     kernel = system.kernel("dynamics")
-    body = w.head(kernel, touches_state=system.kinematics_identity, reads_inputs=True)
+    body = w.head(kernel, touches_state=system.kinematics_identity, reads_inputs=True,
+                  on_singular="return dep_status;")
     M = results(kernel, "M")
     body.append("/* Mass matrix, lower triangle */")
     for (j, k), expr in M.items():
@@ -483,6 +631,13 @@ def _dynamics_functions(w: KernelWriter) -> list:
     failure = f"{prefix}_pivot_failure(x)"
     m = system.n_constraints
     arguments = f"{w.driven_arguments}, {real} *qd, {real} *ud"
+    if w.n_dependent:
+        return [record("int", f"{prefix}_dynamics", f"{arguments}, {real} *gauge",
+                       "K, M, F, A and gamma of every speed with shared temporaries, the dependent speeds "
+                       f"solved from the constraints; ud of the {w.n_u} independent speeds from Kane's reduced "
+                       f"equations ({prefix}_eliminated_solve); gauge (or NULL) receives the pivots of the "
+                       "reduced M (the singularity monitor of the drivers).",
+                       body + _eliminated_dynamics_lines(w, kernel, M), static=True)]
     if not m:
         factor, LD = ldlt_factor_lines(n, nonzero, real, failure)
         body += factor + _gauge_lines(n) + ldlt_substitution_lines(n, LD, real, lambda i: f"F_{i}",
@@ -505,6 +660,22 @@ def _dynamics_functions(w: KernelWriter) -> list:
                    f"gauge (or NULL) receives the {n} pivots of M, the {m} of A M^-1 A^T and A "
                    "(the singularity monitor of the drivers).",
                    body, static=True)]
+
+
+def _eliminated_dynamics_lines(w: KernelWriter, kernel, M: dict) -> list:
+    """The unreduced M (mirrored), F, A and gamma into arrays for `_eliminated_solve_function`."""
+    real, n, m = w.real, w.n_m, w.n_dependent
+    zero = literal(0, real)
+    lines = [f"{real} Mfull[{n * n}], Fvec[{n}], A[{m * n}], gamma[{m}];"]
+    for j in range(n):
+        for k in range(n):
+            a, b = (j, k) if k <= j else (k, j)
+            lines.append(f"Mfull[{j * n + k}] = {f'M_{a}_{b}' if M.get((a, b), 0) != 0 or a == b else zero};")
+    lines += [f"Fvec[{j}] = F_{j};" for j in range(n)]
+    lines += [f"A[{i * n + j}] = {w.expr(e, f'A[{i}][{j}]')};" for (i, j), e in results(kernel, "A").items()]
+    lines += [f"gamma[{i}] = {w.expr(e, f'gamma[{i}]')};" for (i, _), e in results(kernel, "C").items()]
+    lines.append(f"return {w.prefix}_eliminated_solve(Mfull, Fvec, A, gamma, ud, gauge);")
+    return lines
 
 
 def _gauge_lines(n: int, indent: bool = True) -> list:

@@ -52,7 +52,9 @@ class ReducedSystem:
 
     ``kinematics_identity`` is True when qd = u (every Lagrange route), so the C copies u.
     ``accelerations`` are the symbols a_j standing for ud_j in the jacobian kernel.
-    ``n_constraints`` is m, the number of holonomic constraints.
+    ``n_constraints`` is m, the number of constraints with multipliers (0 when they are eliminated).
+    ``u`` are the speeds in the state; ``u_dependent`` those eliminated by the velocity constraints
+    (computed from them in C at every evaluation; M and F are over ``u + u_dependent``).
     ``inputs`` are the symbols of the inputs r (``r[i]`` in C), in the model's order;
     ``measurements`` the names of the model's output expressions y = h(q, u, r, t).
     ``ops_saved_by_fixing`` counts operations removed, before CSE, by folding fixed parameters.
@@ -75,6 +77,7 @@ class ReducedSystem:
     n_constraints: int = 0
     inputs: tuple = ()
     measurements: tuple = ()
+    u_dependent: tuple = ()
 
     def kernel(self, name: str) -> ReducedKernel:
         for k in self.kernels:
@@ -108,15 +111,17 @@ def reduce_expressions(eom: EquationsOfMotion, outputs=DEFAULT_OUTPUTS,
         if folding:
             saved += sp.count_ops(raw) - sp.count_ops(folded)
         kernels.append(_reduce(name, [label for label, _ in labelled], folded))
-    kinematics_identity = list(eom.kinematics) == list(eom.u)
+    independent = eom.n_u - eom.n_dependent
+    kinematics_identity = list(eom.kinematics) == list(eom.u) and not eom.n_dependent
     fixed_symbols = {p for p, _ in fixed_values}
     return ReducedSystem(
-        name=eom.name, route=eom.route, t=eom.t, q=eom.q, u=eom.u, accelerations=accelerations,
+        name=eom.name, route=eom.route, t=eom.t, q=eom.q, u=eom.u[:independent], accelerations=accelerations,
+        u_dependent=eom.u[independent:],
         free_parameters=tuple(p for p in eom.parameters if p not in fixed_symbols),
         fixed_parameters=fixed_values, parameter_values=dict(eom.parameter_values),
         point_names=tuple(name for name, _ in eom.points),
         outputs=tuple(outputs), kernels=tuple(kernels), kinematics_identity=kinematics_identity,
-        ops_saved_by_fixing=int(saved), n_constraints=eom.m, inputs=tuple(eom.inputs),
+        ops_saved_by_fixing=int(saved), n_constraints=0 if eom.n_dependent else eom.m, inputs=tuple(eom.inputs),
         measurements=tuple(name for name, _ in eom.measurements) if "measurements" in outputs else ())
 
 

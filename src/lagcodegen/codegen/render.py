@@ -55,6 +55,8 @@ class KernelLayout:
         Inputs in ``r[]`` order (empty: the functions take no ``r``).
     measurements : tuple of str
         Output expressions in ``y[]`` order.
+    dependent_speeds : tuple of str
+        Speeds eliminated by the velocity constraints (``<prefix>_dependent_speeds``), not in x.
     """
 
     model: str
@@ -71,6 +73,7 @@ class KernelLayout:
     n_constraints: int = 0
     inputs: tuple = ()
     measurements: tuple = ()
+    dependent_speeds: tuple = ()
 
     @property
     def n_q(self) -> int:
@@ -184,7 +187,7 @@ def render_sources(system: ReducedSystem, precision: str = "double", model_name:
     context |= _trig_context(printer, steppers)
     context["needs_spd"] = bool((context["has_constraints"] and (context["has_dynamics"]
                                                                  or context["has_constraint_terms"]))
-                                or context["has_symplectic_euler"])
+                                or context["has_symplectic_euler"] or bool(system.u_dependent and has_dynamics))
     env = template_environment()
     header_name = f"{names.prefix}.h"
     source_name = f"{names.prefix}.c"
@@ -248,6 +251,7 @@ def _layout(system: ReducedSystem, names: Names, real: str, model_name: str, fun
         fixed=tuple((s.name, v) for s, v in system.fixed_parameters),
         points=system.point_names, functions=exported, methods=methods, n_constraints=system.n_constraints,
         inputs=tuple(s.name for s in system.inputs), measurements=tuple(system.measurements),
+        dependent_speeds=tuple(s.name for s in system.u_dependent),
         defaults=tuple((p.name, system.parameter_values[p]) for p in system.free_parameters
                        if p in system.parameter_values))
 
@@ -260,6 +264,7 @@ def _context(system: ReducedSystem, names: Names, layout: KernelLayout, function
     state_rows = [{"index": i, "name": comment_text(s.name), "c_name": names.symbols[s],
                    "kind": "coordinate" if i < n_q else "speed"}
                   for i, s in enumerate(system.q + system.u)]
+    dependent_rows = [{"index": i, "name": comment_text(s.name)} for i, s in enumerate(system.u_dependent)]
     param_rows = [{"index": i, "name": comment_text(s.name), "c_name": names.symbols[s]}
                   for i, s in enumerate(system.free_parameters)]
     fixed_rows = [{"name": comment_text(s.name), "value": repr(v)} for s, v in system.fixed_parameters]
@@ -271,7 +276,7 @@ def _context(system: ReducedSystem, names: Names, layout: KernelLayout, function
         "route": system.route, "key": hashlib.sha256(key_text.encode()).hexdigest()[:16],
         "prefix": names.prefix, "guard": f"{upper}_H", "macro": upper, "real": real,
         "n_q": n_q, "n_u": n, "n_state": n_q + n, "n_params": len(param_rows), "n_points": len(point_rows),
-        "state_rows": state_rows, "param_rows": param_rows, "fixed_rows": fixed_rows,
+        "state_rows": state_rows, "dependent_rows": dependent_rows, "param_rows": param_rows, "fixed_rows": fixed_rows,
         "point_rows": point_rows, "has_fixed": bool(fixed_rows),
         "status_codes": [{"name": row.c_name, "value": row.code, "doc": row.message} for row in STATUS_TABLE],
         "prototypes": [f for f in functions if not f["static"]], "functions": functions,

@@ -35,7 +35,8 @@ HOT_DYNAMICS_MAX_OPS = 100
 
 def hot_dynamics(system) -> bool:
     """True when the explicit steppers call an always-inlined copy of the dynamics kernel."""
-    return not system.n_constraints and system.kernel("dynamics").ops_after <= HOT_DYNAMICS_MAX_OPS
+    return not system.n_constraints and not system.u_dependent and \
+        system.kernel("dynamics").ops_after <= HOT_DYNAMICS_MAX_OPS
 
 
 def stepper_context(system, names, real: str, methods: list) -> dict:

@@ -280,6 +280,8 @@ def simulate(system: CompiledSystem, x0, t_end: float, h: float, method: str = "
     stride = stride_within(stride, n_steps)
     x = initial_state(system, x0)
     p = parameter_vector(system, params)
+    if system.layout.dependent_speeds:  # a singular constraint Jacobian at the start is bad input
+        dependent_speeds(system, x, params, t0)
     signal = resolve_inputs(system.layout, inputs, t0, h, n_steps, stride)
     ramp = hold_code(hold)
     if ramp and callable(signal):
@@ -560,6 +562,32 @@ def make_rhs(system: CompiledSystem, params: Mapping | None = None, inputs=None)
             raise FloatingPointError(f"rhs failed at t = {t}: {Status(code).message}")
         return out
     return f
+
+
+def dependent_speeds(system: CompiledSystem, x, params: Mapping | None = None, t=0.0) -> np.ndarray:
+    """The eliminated dependent speeds (``layout.dependent_speeds``) at states ``x`` ((N,) or
+    (k, N), e.g. ``trajectory.x``) and times ``t`` (a number or k of them, e.g. ``trajectory.t``),
+    from the compiled ``<prefix>_dependent_speeds``: (m,) or (k, m). A singular constraint
+    Jacobian in them raises ValueError naming the state."""
+    layout = system.layout
+    if not layout.dependent_speeds:
+        raise ValueError(f"model {layout.model!r} eliminates no dependent speeds")
+    dtype = real_dtype(system)
+    states = np.atleast_2d(np.asarray(x, dtype=dtype))
+    if states.ndim != 2 or states.shape[1] != layout.n_state:
+        raise ValueError(f"x must hold {layout.n_state} values per state "
+                         f"({', '.join(layout.coordinates + layout.speeds)}), got shape {np.shape(x)}")
+    times = np.broadcast_to(np.asarray(t, dtype=float), (len(states),))
+    p = parameter_vector(system, params)
+    solve = getattr(system.lib, f"{layout.prefix}_dependent_speeds")
+    out = np.empty((len(states), len(layout.dependent_speeds)), dtype=dtype)
+    for i, (time, state) in enumerate(zip(times, states)):
+        state = np.ascontiguousarray(state)
+        code = solve(time, c_pointer(system, state), c_pointer(system, p), c_pointer(system, out[i]))
+        if code != Status.OK:
+            raise ValueError(f"dependent speeds {', '.join(layout.dependent_speeds)} at t = {time}, x = {state}: "
+                             f"{Status(code).message}")
+    return out if np.ndim(x) == 2 else out[0]
 
 
 def step_jacobians(system: CompiledSystem, x, p, h: float, method: str = "rk4", r=None, t: float = 0.0):

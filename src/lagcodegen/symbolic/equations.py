@@ -65,6 +65,10 @@ class EquationsOfMotion:
         The first rows of the constraint terms are holonomic (phi(q, t) = 0); the other m -
         n_holonomic are velocity constraints A u + b = 0, whose phi rows are 0 and whose
         ``constraint_rate`` rows hold b.
+    n_dependent : int
+        0, or m when the velocity constraints are eliminated (Model.formulation): the last m
+        speeds are dependent, computed from A u + b = 0, and the state holds q and the first
+        n_u - m speeds; M, F, A and gamma stay those of every speed.
     """
 
     name: str
@@ -89,6 +93,7 @@ class EquationsOfMotion:
     inputs: tuple = ()
     measurements: tuple = ()
     n_holonomic: int = 0
+    n_dependent: int = 0
 
     def display(self) -> tuple:
         """(M, F) as a textbook prints them (`display.display_form`); the emitted form is unchanged."""
@@ -246,6 +251,9 @@ def assemble(model, coords, speeds, q, u, M, F, K, T, V, to_plain, inputs_checke
     whose components in the model's frame are already known (in plain symbols). ``constraints``
     (holonomic, phi(q, t) = 0) and ``motion`` (velocity constraints, linear in the coordinate
     rates) default to the model's; a sympy model brings its own."""
+    if model.formulation == "elimination" and model.sympy_model is None:
+        raise ModelError(f"model {model.name!r}: formulation 'elimination' needs named dependent speeds, which "
+                         "a KanesMethod gives (u_dependent=); the energies and bodies routes use multipliers")
     constraints = tuple(model.constraints) if constraints is None else tuple(constraints)
     motion = tuple(getattr(model, "motion_constraints", ())) if motion is None else tuple(motion)
     r = input_symbols(model.inputs)

@@ -32,13 +32,15 @@ def derive_from_sympy(model: Model):
         speeds = tuple(c.diff(TIME) for c in coords)
         kin_dynamic = sp.Matrix(speeds)
         route = "sympy LagrangesMethod"
+        n_dependent = 0
     else:
         speeds = tuple(method.u)
         kindiff = method.kindiffdict()
         kin_dynamic = sp.Matrix([kindiff[c.diff(TIME)] for c in coords])
         route = "sympy KanesMethod (Kane)"
         motion = []
-        if len(method._udep):  # private: sympy 1.14 keeps the split of the speeds only there
+        n_dependent = len(method._udep)  # private: sympy 1.14 keeps the split of the speeds only there
+        if n_dependent:
             motion = list(method._k_nh * sp.Matrix(method.u) + method._f_nh)
             method = _every_speed_independent(method, kindiff)
     q, u = plain_symbols(coords, speeds, model.parameters)
@@ -65,6 +67,7 @@ def derive_from_sympy(model: Model):
     if motion:
         eom = _massless_speeds_regularized(eom)
         check_mass_matrix(eom.mass_matrix, coords, u, speeds)
+        eom = _with_formulation(eom, model, n_dependent)
     if eom.m:  # assemble's " with ... constraints (Lagrange I)"
         route += eom.route[eom.route.index(" with "):]
     elif isinstance(method, me.LagrangesMethod):
@@ -82,6 +85,27 @@ def _every_speed_independent(method, kindiff):
                                bodies=method.bodies, forcelist=method.loads)
     unreduced.kanes_equations(method.bodies, method.loads)
     return unreduced
+
+
+def _with_formulation(eom, model: Model, n_dependent: int):
+    """Kane's dependent speeds eliminated (the default) or kept with multipliers (Model.formulation)."""
+    from dataclasses import replace
+
+    if model.formulation == "multipliers":
+        return eom
+    held = sorted({str(r) for r in eom.inputs if eom.constraint_jacobian.has(r) or eom.constraint_rate.has(r)})
+    obstacle = None
+    if n_dependent != eom.m or eom.n_holonomic:
+        obstacle = "it has no dependent speeds (KanesMethod u_dependent=) for its velocity constraints"
+    elif held:
+        obstacle = f"its velocity constraints read the input(s) {', '.join(held)}"
+    if obstacle is None:
+        return replace(eom, n_dependent=n_dependent,
+                       route=eom.route.replace("(Lagrange I)", "(dependent speeds eliminated, Kane)"))
+    if model.formulation == "elimination":
+        raise ModelError(f"model {model.name!r}: formulation 'elimination' is not possible: {obstacle}; "
+                         "use formulation='multipliers'")
+    return eom
 
 
 def _massless_speeds_regularized(eom):
