@@ -109,20 +109,38 @@ def test_the_bicycle_has_one_holonomic_and_four_velocity_constraints(bicycle):
     assert "holonomic and velocity constraints" in bicycle.route
 
 
-@pytest.mark.parametrize("speed", [5.0])
-def test_upright_running_eigenvalues_equal_the_benchmark(bicycle, speed):
-    """At 5 m/s: weave -0.775 +- 4.465i, capsize -0.323, castor -14.08 (Meijaard et al., table 2)."""
+def upright_eigenvalues(bicycle, speed: float) -> np.ndarray:
+    """Eigenvalues of ``linearize_state``'s reduced matrix at upright straight running at ``speed``."""
     upright = dict.fromkeys(("x", "y", "q1", "q2", "q3", "q4", "q5", "q6"), 0.0)
     q0, u0 = consistent_state(bicycle, upright, {"q1": 0, "q2": 0, "q3": speed / 0.3, "q5": 0},
                               fix=tuple(upright))
     np.testing.assert_allclose(u0[:2], [speed, 0.0], atol=1e-12)  # the rear contact rolls forward at v
     linear = linearize_state(bicycle, list(q0) + list(u0), values={})
     assert linear.basis.shape == (16, 10)
-    ours = linear.eigenvalues()
+    return linear.eigenvalues()
+
+
+@pytest.mark.parametrize("speed", [0.0, 2.0, 4.0, 5.0, 6.0, 8.0, 10.0])
+def test_upright_running_eigenvalues_equal_the_benchmark(bicycle, speed):
+    """From 0 to 10 m/s; at 5 m/s: weave -0.775 +- 4.465i, capsize -0.323, castor -14.08
+    (Meijaard et al., table 2)."""
+    ours = upright_eigenvalues(bicycle, speed)
     reference = np.linalg.eigvals(benchmark_matrix(speed))
     for value in reference:
         assert np.abs(ours - value).min() < 1e-8 * max(1.0, abs(value)), (value, ours)
     assert np.sort(np.abs(ours))[:6].max() < 1e-6
+
+
+def test_the_self_stable_speed_range_is_the_benchmarks(bicycle):
+    """The weave and capsize speeds, 4.292 and 6.024 m/s (Meijaard et al. 2007; 4.2923825 and
+    6.0242620 from the benchmark matrix by brentq): the largest real part of the non-neutral
+    eigenvalues changes sign within +-0.005 m/s of each."""
+    def largest_real_part(speed):
+        values = upright_eigenvalues(bicycle, speed)
+        return values[np.abs(values) > 1e-6].real.max()
+
+    assert largest_real_part(4.2874) > 0 > largest_real_part(4.2974)
+    assert largest_real_part(6.0193) < 0 < largest_real_part(6.0293)
 
 
 def test_the_nonlinear_bicycle_rights_itself_at_5_and_falls_at_3_m_s(bicycle, tmp_path):
