@@ -216,6 +216,7 @@ def trajectory_error(system, method, values, inputs, rng) -> float:
     def rhs(time, x):
         return np.linalg.solve(np.asarray(M(x, time), dtype=float), np.asarray(F(x, time), dtype=float).ravel())[:n]
 
+    state = consistent_coordinates(method, state, values)
     ours = state[:len(state) - len(system.layout.dependent_speeds)]
     if system.layout.dependent_speeds:  # a consistent start: the dependent speeds from the constraints
         state = ours + list(dependent_speeds(system, ours, {p.name: v for p, v in values.items()}))
@@ -226,6 +227,38 @@ def trajectory_error(system, method, values, inputs, rng) -> float:
     reference = solve_ivp(rhs, (0.0, 1.0), state, method="DOP853", rtol=1e-12, atol=1e-12, t_eval=[1.0])
     expected = reference.y[:len(ours), -1]
     return float(np.max(np.abs(run.x[-1] - expected) / (1 + np.abs(expected))))
+
+
+def consistent_coordinates(method, state: list, values: dict) -> list:
+    """``state`` with a KanesMethod's dependent coordinates solved from its configuration
+    constraints (scipy's fsolve from the random draw), the independent ones kept: a random
+    configuration of a closed loop is otherwise no configuration of the mechanism."""
+    from scipy.optimize import fsolve
+
+    dependent = list(getattr(method, "_qdep", []))  # private: sympy 1.14 keeps them only there
+    if not dependent:
+        return state
+    q = list(method.q)
+    by_name = {p.name: v for p, v in values.items()}
+    # a length only the positions hold (a four-bar's ground link, absent from the velocity constraints
+    # and the dynamics) is no parameter of the model: any value makes a mechanism
+    lengths = {s: by_name.get(s.name, 1.0) for s in method._f_h.free_symbols if s != me.dynamicsymbols._t}
+    independent = [c for c in q if c not in dependent]
+    residual = sp.lambdify([independent, dependent], list(method._f_h.xreplace(lengths)), "numpy")
+    rng = np.random.default_rng(len(state))
+    draws = [[state[q.index(c)] for c in independent]] + list(rng.uniform(-np.pi, np.pi, (20, len(independent))))
+    for drawn in draws:  # the drawn independent coordinates first; a crank angle the loop cannot reach next
+        guesses = [[state[q.index(c)] for c in dependent]] + list(rng.uniform(-np.pi, np.pi, (20, len(dependent))))
+        for guess in guesses:
+            solved, _, found, _ = fsolve(lambda d, at=drawn: residual(at, d), guess, full_output=True, xtol=1e-14)
+            if found == 1 and np.max(np.abs(residual(drawn, solved))) < 1e-10:
+                fixed = list(state)
+                for c, v in zip(independent, drawn):
+                    fixed[q.index(c)] = float(v)
+                for c, v in zip(dependent, solved):
+                    fixed[q.index(c)] = float(v)
+                return fixed
+    raise RuntimeError(f"no configuration satisfies {method._f_h.T}")
 
 
 def _constant(r):

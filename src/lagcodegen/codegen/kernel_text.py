@@ -54,8 +54,8 @@ def names_for(system: ReducedSystem, model_name: str) -> Names:
     taken = set(RESERVED) | _solver_locals(max(len(system.q), len(system.u) + len(system.u_dependent)))
     if system.inputs or system.measurements:
         taken |= DRIVEN_RESERVED
-    if system.u_dependent:
-        taken |= DEPENDENT_RESERVED
+    if system.u_dependent or system.reactions:
+        taken |= DEPENDENT_RESERVED | {"RJ"}
     temporaries = [s for k in system.kernels for s, _ in k.temporaries]
     symbols = {}
     for s in dict.fromkeys(temporaries):  # cse names first: tmp0, tmp1, ...

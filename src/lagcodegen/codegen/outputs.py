@@ -63,6 +63,24 @@ def _dependent_rows(eom: EquationsOfMotion) -> list:
                    for i in range(eom.m)]
 
 
+def _dependent_acceleration_rows(eom: EquationsOfMotion, a) -> list:
+    """("AD", i, j) = A[i, p + j] and ("GB", i, 0) = sum_k<p A[i, k] a_k - gamma_i: the dependent
+    accelerations solve A_D ud_dep = -GB (A ud = gamma differentiated from the constraints)."""
+    A, p = eom.constraint_jacobian, eom.n_u - eom.n_dependent
+    rows = [(("AD", i, j), A[i, p + j]) for i in range(eom.m) for j in range(eom.n_dependent)]
+    return rows + [(("GB", i, 0), sp.Add(*[A[i, k] * a[k] for k in range(p)]) - eom.constraint_bias[i])
+                   for i in range(eom.m)]
+
+
+def _reaction_rows(eom: EquationsOfMotion, a) -> list:
+    """("RJ", i, j) = d(aux_i)/dR_j and ("RB", i, 0) = aux_i at R = 0 of Kane's auxiliary equations,
+    accelerations as the symbols ``a``: the reactions solve RJ R = -RB."""
+    rows = [e.xreplace(dict(zip(eom.reaction_accelerations, a))) for e in eom.reaction_equations]
+    zero = dict.fromkeys(eom.reactions, 0)
+    return [(("RJ", i, j), row.diff(force)) for i, row in enumerate(rows) for j, force in enumerate(eom.reactions)] + \
+        [(("RB", i, 0), row.xreplace(zero)) for i, row in enumerate(rows)]
+
+
 def _jacobian_rows(eom: EquationsOfMotion, a) -> list:
     """M, then d/dx of G = M(q, t) a - F(q, u, r, t) (and of K when qd != u), x = (q, u), and
     d/dr of both (labels GR, DKR) when the model has inputs r.
@@ -120,6 +138,8 @@ KERNEL_ROWS: dict[str, Callable] = {
     "points": lambda eom, a: _point_rows(eom),
     "measurements": lambda eom, a: [(("Y", i, 0), y) for i, (_, y) in enumerate(eom.measurements)],
     "dependent": lambda eom, a: _dependent_rows(eom),
+    "dependent_accelerations": _dependent_acceleration_rows,
+    "reactions": _reaction_rows,
 }
 
 
@@ -332,6 +352,40 @@ def _dependent_speeds_c(w: KernelWriter, kernel) -> dict:
                   "them is singular).", body)
 
 
+def _dependent_accelerations_c(w: KernelWriter, kernel) -> dict:
+    m, p, real, prefix = w.n_dependent, w.n_u, w.real, w.prefix
+    body = w.head(kernel, on_singular="return dep_status;") + [f"{real} AD[{m * m}], b[{m}];", "int i;"]
+    body += [f"AD[{i * m + j}] = {w.expr(e, f'A_D[{i}][{j}]')};" for (i, j), e in results(kernel, "AD").items()]
+    body += [f"b[{i}] = -({w.expr(e, f'row {i}')});" for (i, _), e in results(kernel, "GB").items()]
+    body += [f"if (!{prefix}_dense_solve(AD, b, {m}, 1)) return LCG_SINGULAR_CONSTRAINTS;",
+             f"for (i = 0; i < {m}; ++i) ud[{p} + i] = b[i];",
+             f"return {prefix}_finite_result(LCG_OK, ud, {p + m});"]
+    return record("int", f"{prefix}_dependent_accelerations", f"{w.arguments}, {real} *ud",
+                  f"Given the {p} independent accelerations in ud[0..{p - 1}], the {m} dependent ones into "
+                  f"ud[{p}..{p + m - 1}] (the velocity constraints differentiated); returns a status code.", body)
+
+
+def _reactions_c(w: KernelWriter, kernel) -> dict:
+    """Kane's auxiliary equations solved for the unknown forces at the accelerations of (t, x)."""
+    forces, real, prefix = w.system.reactions, w.real, w.prefix
+    k = len(forces)
+    body = [f"{real} ud[{w.n_m}];", f"int status = {prefix}_accel(t, x, {w.rp}, ud);",
+            "if (status != LCG_OK) return status;"]
+    if w.n_dependent:
+        body += [f"status = {prefix}_dependent_accelerations(t, x, p, ud);", "if (status != LCG_OK) return status;"]
+    body += w.head(kernel, touches_state=True, reads_inputs=True, on_singular="return dep_status;")
+    body += [f"{real} RJ[{k * k}];", "/* RJ R = -RB: the auxiliary equations, linear in the forces */"]
+    body += [f"RJ[{i * k + j}] = {w.expr(e, f'd aux[{i}]/d {forces[j]}')};"
+             for (i, j), e in results(kernel, "RJ").items()]
+    body += [f"out[{i}] = -({w.expr(e, f'aux[{i}]')});" for (i, _), e in results(kernel, "RB").items()]
+    body += [f"if (!{prefix}_dense_solve(RJ, out, {k}, 1)) return LCG_SINGULAR_CONSTRAINTS;",
+             f"return {prefix}_finite_result(LCG_OK, out, {k});"]
+    names = ", ".join(s.name for s in forces)
+    return record("int", f"{prefix}_reactions", f"{w.driven_arguments}, {real} *out",
+                  f"The {k} constraint forces Kane's auxiliary speeds expose ({names}) at (t, x), from the "
+                  "auxiliary equations at the accelerations there; returns a status code.", body)
+
+
 def _multipliers_c(w: KernelWriter, kernel) -> dict:
     n, prefix, real, m = w.n_u, w.prefix, w.real, w.system.n_constraints
     body = [f"{real} qd[{w.n_q}], ud[{n}];",
@@ -426,6 +480,10 @@ OUTPUTS: dict[str, Output] = {o.name: o for o in (
            requires=("jacobian",)),
     Output("dependent_speeds", "dependent", _dependent_speeds_c, empty=lambda eom: not eom.n_dependent,
            checked=True, default=True),
+    Output("dependent_accelerations", "dependent_accelerations", _dependent_accelerations_c,
+           empty=lambda eom: not eom.n_dependent, checked=True),
+    Output("reactions", "reactions", _reactions_c, empty=lambda eom: not eom.reactions, checked=True, default=True,
+           requires=("accel",)),
 )}
 DEFAULT_OUTPUTS = tuple(name for name, o in OUTPUTS.items() if o.default)
 
@@ -449,6 +507,8 @@ def checked_outputs(eom: EquationsOfMotion, outputs) -> list:
         raise KernelError("no outputs requested")
     if eom.n_dependent and "dependent_speeds" not in chosen:  # every kernel reading them calls it
         chosen.insert(0, "dependent_speeds")
+    if eom.n_dependent and "reactions" in chosen and "dependent_accelerations" not in chosen:
+        chosen.insert(chosen.index("reactions"), "dependent_accelerations")
     return chosen
 
 
@@ -476,8 +536,9 @@ def support_functions(w: KernelWriter) -> list:
     functions = []
     if any(o.checked for o in outputs):
         functions.append(_finite_result_function(w))
-    if w.n_dependent:
+    if w.n_dependent or w.system.reactions:
         functions.append(_dense_solve_function(w))
+    if w.n_dependent:
         if any(o.kernel == "dynamics" for o in outputs):
             functions.append(_eliminated_solve_function(w))
     if any(o.kernel == "dynamics" for o in outputs):

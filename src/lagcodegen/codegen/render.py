@@ -57,6 +57,8 @@ class KernelLayout:
         Output expressions in ``y[]`` order.
     dependent_speeds : tuple of str
         Speeds eliminated by the velocity constraints (``<prefix>_dependent_speeds``), not in x.
+    reactions : tuple of str
+        Constraint forces from Kane's auxiliary speeds (``<prefix>_reactions``), in its ``out[]`` order.
     """
 
     model: str
@@ -74,6 +76,7 @@ class KernelLayout:
     inputs: tuple = ()
     measurements: tuple = ()
     dependent_speeds: tuple = ()
+    reactions: tuple = ()
 
     @property
     def n_q(self) -> int:
@@ -251,7 +254,7 @@ def _layout(system: ReducedSystem, names: Names, real: str, model_name: str, fun
         fixed=tuple((s.name, v) for s, v in system.fixed_parameters),
         points=system.point_names, functions=exported, methods=methods, n_constraints=system.n_constraints,
         inputs=tuple(s.name for s in system.inputs), measurements=tuple(system.measurements),
-        dependent_speeds=tuple(s.name for s in system.u_dependent),
+        dependent_speeds=tuple(s.name for s in system.u_dependent), reactions=tuple(s.name for s in system.reactions),
         defaults=tuple((p.name, system.parameter_values[p]) for p in system.free_parameters
                        if p in system.parameter_values))
 

@@ -569,9 +569,26 @@ def dependent_speeds(system: CompiledSystem, x, params: Mapping | None = None, t
     (k, N), e.g. ``trajectory.x``) and times ``t`` (a number or k of them, e.g. ``trajectory.t``),
     from the compiled ``<prefix>_dependent_speeds``: (m,) or (k, m). A singular constraint
     Jacobian in them raises ValueError naming the state."""
+    names = system.layout.dependent_speeds
+    if not names:
+        raise ValueError(f"model {system.layout.model!r} eliminates no dependent speeds")
+    return _per_state(system, "dependent_speeds", names, x, params, t, None)
+
+
+def reactions(system: CompiledSystem, x, params: Mapping | None = None, t=0.0, r=None) -> np.ndarray:
+    """The constraint forces Kane's auxiliary speeds expose (``layout.reactions``, e.g. a contact's
+    normal and friction forces) at states ``x`` and times ``t`` as `dependent_speeds` takes them,
+    with the inputs ``r`` ((n_r,) or (k, n_r)) of a driven model: (n_R,) or (k, n_R)."""
+    names = system.layout.reactions
+    if not names:
+        raise ValueError(f"model {system.layout.model!r} has no reactions: they come from a KanesMethod with "
+                         "auxiliary speeds and the unknown forces applied where they act")
+    return _per_state(system, "reactions", names, x, params, t, r)
+
+
+def _per_state(system: CompiledSystem, function: str, names: tuple, x, params, t, r) -> np.ndarray:
+    """``<prefix>_<function>(t, x, [r,] p, out)`` at every state of ``x``; a status raises ValueError."""
     layout = system.layout
-    if not layout.dependent_speeds:
-        raise ValueError(f"model {layout.model!r} eliminates no dependent speeds")
     dtype = real_dtype(system)
     states = np.atleast_2d(np.asarray(x, dtype=dtype))
     if states.ndim != 2 or states.shape[1] != layout.n_state:
@@ -579,13 +596,21 @@ def dependent_speeds(system: CompiledSystem, x, params: Mapping | None = None, t
                          f"({', '.join(layout.coordinates + layout.speeds)}), got shape {np.shape(x)}")
     times = np.broadcast_to(np.asarray(t, dtype=float), (len(states),))
     p = parameter_vector(system, params)
-    solve = getattr(system.lib, f"{layout.prefix}_dependent_speeds")
-    out = np.empty((len(states), len(layout.dependent_speeds)), dtype=dtype)
+    call = getattr(system.lib, f"{layout.prefix}_{function}")
+    driven = function == "reactions" and layout.inputs
+    if driven:
+        if r is None:
+            raise ValueError(f"model {layout.model!r} is driven by {', '.join(layout.inputs)}: pass r=")
+        held = np.broadcast_to(np.asarray(r, dtype=dtype), (len(states), len(layout.inputs)))
+    out = np.empty((len(states), len(names)), dtype=dtype)
     for i, (time, state) in enumerate(zip(times, states)):
         state = np.ascontiguousarray(state)
-        code = solve(time, c_pointer(system, state), c_pointer(system, p), c_pointer(system, out[i]))
+        arguments = [time, c_pointer(system, state)]
+        if driven:
+            arguments.append(c_pointer(system, np.ascontiguousarray(held[i])))
+        code = call(*arguments, c_pointer(system, p), c_pointer(system, out[i]))
         if code != Status.OK:
-            raise ValueError(f"dependent speeds {', '.join(layout.dependent_speeds)} at t = {time}, x = {state}: "
+            raise ValueError(f"{function.replace('_', ' ')} {', '.join(names)} at t = {time}, x = {state}: "
                              f"{Status(code).message}")
     return out if np.ndim(x) == 2 else out[0]
 

@@ -69,6 +69,10 @@ class EquationsOfMotion:
         0, or m when the velocity constraints are eliminated (Model.formulation): the last m
         speeds are dependent, computed from A u + b = 0, and the state holds q and the first
         n_u - m speeds; M, F, A and gamma stay those of every speed.
+    reactions : tuple of Symbol
+        Unknown constraint forces (a contact's normal and friction forces) that Kane's auxiliary
+        speeds expose; ``reaction_equations`` (one row per auxiliary speed, linear in them) hold
+        in q, u and the accelerations, for which ``reaction_accelerations`` (one per speed) stand.
     """
 
     name: str
@@ -94,6 +98,9 @@ class EquationsOfMotion:
     measurements: tuple = ()
     n_holonomic: int = 0
     n_dependent: int = 0
+    reactions: tuple = ()
+    reaction_equations: sp.ImmutableMatrix = sp.ImmutableMatrix(0, 1, [])
+    reaction_accelerations: tuple = ()
 
     def display(self) -> tuple:
         """(M, F) as a textbook prints them (`display.display_form`); the emitted form is unchanged."""

@@ -32,13 +32,14 @@ def derive_from_sympy(model: Model):
         speeds = tuple(c.diff(TIME) for c in coords)
         kin_dynamic = sp.Matrix(speeds)
         route = "sympy LagrangesMethod"
-        n_dependent = 0
+        n_dependent, auxiliary_equations = 0, None
     else:
         speeds = tuple(method.u)
         kindiff = method.kindiffdict()
         kin_dynamic = sp.Matrix([kindiff[c.diff(TIME)] for c in coords])
         route = "sympy KanesMethod (Kane)"
         motion = []
+        auxiliary_equations = method.auxiliary_eqs if auxiliary else None
         n_dependent = len(method._udep)  # private: sympy 1.14 keeps the split of the speeds only there
         if n_dependent:
             motion = list(method._k_nh * sp.Matrix(method.u) + method._f_nh)
@@ -72,7 +73,37 @@ def derive_from_sympy(model: Model):
         route += eom.route[eom.route.index(" with "):]
     elif isinstance(method, me.LagrangesMethod):
         route += " (Lagrange II)"
+    if auxiliary_equations is not None:
+        eom = _with_reactions(eom, model, auxiliary_equations, coords, speeds, auxiliary, to_plain)
     return _with_route(eom, route)
+
+
+def _with_reactions(eom, model: Model, equations, coords, speeds, auxiliary, to_plain):
+    """The unknown forces of Kane's auxiliary equations (Fr + Fr* of the auxiliary speeds = 0, linear
+    in them): every symbol there that is not a parameter, input, coordinate, speed or acceleration."""
+    from dataclasses import replace
+
+    accelerations = tuple(sp.Symbol(f"{u.name}_dot") for u in eom.u)
+    known = set(coords) | set(speeds) | set(auxiliary) | {s.diff(TIME) for s in speeds + tuple(auxiliary)}
+    unknown_functions = sorted(me.find_dynamicsymbols(equations) - known - set(model.inputs), key=str)
+    plain = {f: sp.Symbol(f.func.__name__) for f in unknown_functions}
+    rates = dict(zip((s.diff(TIME) for s in speeds), accelerations))
+    rows = to_plain(sp.Matrix(equations).xreplace(rates).xreplace(plain), "auxiliary equations")
+    declared = set(eom.parameters) | set(eom.inputs) | set(eom.q) | set(eom.u) | set(accelerations) | {eom.t}
+    unknowns = tuple(sorted(rows.free_symbols - declared, key=str))
+    if not unknowns:
+        return eom
+    if len(unknowns) != rows.rows:
+        raise ModelError(f"model {model.name!r}: Kane's {rows.rows} auxiliary equations hold {len(unknowns)} unknown "
+                         f"forces ({', '.join(map(str, unknowns))}); the reactions need as many equations as "
+                         "unknowns (one auxiliary speed per force component)")
+    for i, row in enumerate(rows):
+        for force in unknowns:
+            if row.diff(force).has(*unknowns):
+                raise ModelError(f"model {model.name!r}: auxiliary equation {i} is not linear in the unknown "
+                                 f"force {force}")
+    return replace(eom, reactions=unknowns, reaction_equations=sp.ImmutableMatrix(rows),
+                   reaction_accelerations=accelerations)
 
 
 def _every_speed_independent(method, kindiff):

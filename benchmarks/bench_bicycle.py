@@ -1,0 +1,184 @@
+"""Suite `bicycle`: the Whipple bicycle as sympy's own test_kane3.py builds it (KanesMethod, 4
+coordinates, 3 independent and 3 dependent speeds, CRAMER solver), against sympy + PyDy's
+Cython code for the same KanesMethod object.
+
+In one fresh worker: sympy forms the KanesMethod (the test function is run until its
+``kanes_equations`` returns; not timed for either side). Then, each from that object:
+
+- lagcodegen's cold pipeline: ``Model(sympy_model=...)`` and ``compile_model`` (the RK4 driver
+  and the rhs, an empty cache directory), dependent speeds eliminated (the default);
+- PyDy's ``generate_ode_function(forcing, q, u, constants, mass_matrix=mass_matrix,
+  coordinate_derivatives=<kindiffdict>, generator="cython")`` (its code generation and Cython
+  compile; Kane's M and F of every speed, the dependent ones' rows from the constraints);
+- ns per RK4 step (h = 1e-3) from the same consistent state: ours is ``simulate``'s loop in C
+  (best of ``--bicycle-repeat``, default 3); PyDy has no integrator, so its step is the classic
+  RK4 in Python around its compiled rhs (four calls and the numpy updates, what a PyDy user runs),
+  and also reported: four bare calls of its rhs, the floor of any Python stepping loop.
+
+Goals (issue 14): RK4 step >= 50x faster than PyDy's; our cold pipeline faster than PyDy's
+generate + compile.
+
+Run through the suite runner: ``python benchmarks/run.py bicycle [--quick]`` (needs the ``bench``
+extra: pydy, cython).
+"""
+from __future__ import annotations
+
+import sys
+import time
+from pathlib import Path
+
+if __package__ in (None, ""):
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from _common import emit, format_table, peer_versions, progress, run_worker  # noqa: E402
+
+DESCRIPTION = "Whipple bicycle (sympy test_kane3's KanesMethod): pipeline and RK4 ns/step against PyDy's Cython"
+STEPS = {False: 20_000, True: 2_000}
+SPEED = 5.0  # m/s, upright with a small roll rate
+
+
+class _Formed(Exception):
+    """Stops sympy's test function once its KanesMethod has its equations."""
+
+
+def bicycle_kane():
+    """The KanesMethod test_kane3.test_bicycle forms (its later linearization checks are skipped)."""
+    import sympy.physics.mechanics as me
+    from sympy.physics.mechanics.tests import test_kane3
+
+    original = me.KanesMethod.kanes_equations
+    formed = []
+
+    def record(self, *args, **kwargs):
+        original(self, *args, **kwargs)
+        formed.append(self)
+        raise _Formed
+
+    me.KanesMethod.kanes_equations = record
+    try:
+        test_kane3.test_bicycle()
+    except _Formed:
+        pass
+    finally:
+        me.KanesMethod.kanes_equations = original
+    if not formed:
+        raise RuntimeError("sympy's test_kane3.test_bicycle formed no KanesMethod")
+    return formed[0]
+
+
+def add_arguments(group) -> None:
+    group.add_argument("--bicycle-repeat", type=int, default=3, metavar="R", help="best of R runs (default 3)")
+
+
+def worker_measure(quick: str, repeat: str) -> None:
+    import tempfile
+
+    import numpy as np
+    import sympy as sp
+    from _common import best_seconds, per_call_seconds
+    from pydy.codegen.ode_function_generators import generate_ode_function
+
+    from lagcodegen import Model
+    from lagcodegen.pipeline import compile_model
+    from lagcodegen.run.simulate import dependent_speeds, parameter_vector, simulate
+
+    quick, repeat = quick == "1", int(repeat)
+    steps = STEPS[quick]
+    start = time.perf_counter()
+    kane = bicycle_kane()
+    emit(sympy_s=time.perf_counter() - start)
+    progress(f"bicycle: sympy formed the KanesMethod in {time.perf_counter() - start:.0f} s")
+    t = sp.Symbol("t")
+    constants = sorted((kane.mass_matrix_full.free_symbols | kane.forcing_full.free_symbols) - {t}, key=str)
+    values = {c: 0.5 + 0.1 * i for i, c in enumerate(constants)}  # any positive values; the timing needs no physics
+
+    with tempfile.TemporaryDirectory() as cache:
+        start = time.perf_counter()
+        model = Model("whipple_kane", parameters=constants, sympy_model=kane)
+        system = compile_model(model, methods=("rk4",), outputs=("rhs",), cache_dir=cache)
+        emit(ours_pipeline_s=time.perf_counter() - start)
+        progress(f"bicycle: lagcodegen pipeline {time.perf_counter() - start:.1f} s")
+        start = time.perf_counter()
+        rates = kane.kindiffdict()
+        # lists, not Matrices: PyDy 0.9.4 adds coordinates + speeds for its docstring (elementwise for Matrices)
+        pydy_rhs = generate_ode_function(kane.forcing, list(kane.q), list(kane.u), constants,
+                                         mass_matrix=kane.mass_matrix,
+                                         coordinate_derivatives=sp.Matrix([rates[c.diff()] for c in kane.q]),
+                                         generator="cython", constants_arg_type="array")
+        emit(pydy_pipeline_s=time.perf_counter() - start)
+        progress(f"bicycle: PyDy generate + compile {time.perf_counter() - start:.1f} s")
+
+        params = {c.name: v for c, v in values.items()}
+        n_q = len(kane.q)
+        ours_x0 = np.zeros(system.layout.n_state)
+        ours_x0[n_q:] = [0.3, SPEED / 0.5, 0.1][:system.layout.n_u]  # independent speeds
+        full_x0 = np.concatenate([ours_x0, dependent_speeds(system, ours_x0, params)])
+        seconds = best_seconds(lambda: simulate(system, ours_x0, t_end=steps * 1e-3, h=1e-3, params=params,
+                                                stride=steps, check_stability=False), repeat)
+        ours_ns = seconds / steps * 1e9
+
+        p = parameter_vector(system, params)
+        p_pydy = np.array([values[c] for c in constants])
+
+        def pydy_rk4(n: int) -> np.ndarray:
+            x, h = full_x0.copy(), 1e-3
+            for i in range(n):
+                time_i = i * h
+                k1 = pydy_rhs(x, time_i, p_pydy)
+                k2 = pydy_rhs(x + h / 2 * k1, time_i + h / 2, p_pydy)
+                k3 = pydy_rhs(x + h / 2 * k2, time_i + h / 2, p_pydy)
+                k4 = pydy_rhs(x + h * k3, time_i + h, p_pydy)
+                x = x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+            return x
+
+        pydy_steps = max(200, steps // 10)
+        pydy_ns = best_seconds(lambda: pydy_rk4(pydy_steps), repeat) / pydy_steps * 1e9
+        def calls(number: int) -> None:
+            for _ in range(number):
+                pydy_rhs(full_x0, 0.0, p_pydy)
+
+        rhs_ns = per_call_seconds(calls, repeat) * 1e9
+        # the same step both ways, as a check that the two codes integrate the same equations
+        ours_one = simulate(system, ours_x0, t_end=0.01, h=1e-3, params=params, check_stability=False).x[-1]
+        theirs_one = pydy_rk4(10)[:len(ours_one)]
+        emit(ours_ns=ours_ns, pydy_rk4_ns=pydy_ns, pydy_rhs_ns=rhs_ns, steps=steps, pydy_steps=pydy_steps,
+             agreement=float(np.max(np.abs(ours_one - theirs_one))), n_params=len(p))
+    progress("bicycle: done")
+
+
+def run(options) -> dict:
+    data = run_worker(__file__, ["measure", int(options.quick), options.bicycle_repeat],
+                      [options.timeout or 900.0] * 4)
+    ours, pydy, floor = data.get("ours_ns"), data.get("pydy_rk4_ns"), data.get("pydy_rhs_ns")
+    lines = [f"Whipple bicycle, sympy test_kane3's KanesMethod (4 q, 3 + 3 dependent u); RK4, h = 1e-3; "
+             f"{peer_versions('pydy', 'cython', 'sympy')}; worker status: {data['status']}",
+             f"sympy's kanes_equations (shared, not timed for either): {data.get('sympy_s', float('nan')):.1f} s"]
+    body = [["cold pipeline [s]", f"{data.get('ours_pipeline_s', float('nan')):.2f}",
+             f"{data.get('pydy_pipeline_s', float('nan')):.2f}", ""]]
+    if ours and pydy:
+        body.append(["RK4 step [ns]", f"{ours:.0f}", f"{pydy:.0f}", f"{pydy / ours:.1f}x"])
+        body.append(["4 bare rhs calls [ns]", "", f"{4 * floor:.0f}", f"{4 * floor / ours:.1f}x"])
+    lines.append(format_table(["measure", "lagcodegen", "PyDy (Cython)", "ratio"], body))
+    if "agreement" in data:
+        lines.append(f"10 RK4 steps from the same state, ours vs PyDy's: max |difference| {data['agreement']:.1e}")
+    rows = [{k: v for k, v in data.items() if k != "status"}]
+    goals = []
+    if ours and pydy:
+        goals.append({"goal": "bicycle RK4 step >= 50x faster than PyDy's Cython rhs in an RK4 loop",
+                      "status": "PASS" if pydy / ours >= 50 else "FAIL", "detail": f"{pydy / ours:.1f}x"})
+    else:
+        goals.append({"goal": "bicycle RK4 step >= 50x PyDy", "status": "NOT RUN", "detail": data["status"]})
+    if "ours_pipeline_s" in data and "pydy_pipeline_s" in data:
+        goals.append({"goal": "bicycle cold pipeline faster than PyDy's generate + compile",
+                      "status": "PASS" if data["ours_pipeline_s"] < data["pydy_pipeline_s"] else "FAIL",
+                      "detail": f"{data['ours_pipeline_s']:.1f} s vs {data['pydy_pipeline_s']:.1f} s"})
+    return {"table": "\n".join(lines), "rows": rows, "goals": goals}
+
+
+WORKERS = {"measure": worker_measure}
+
+if __name__ == "__main__":
+    if len(sys.argv) >= 3 and sys.argv[1] == "--worker" and sys.argv[2] in WORKERS:
+        WORKERS[sys.argv[2]](*sys.argv[3:])
+    else:
+        sys.exit("bench_bicycle.py is a suite module; run: python benchmarks/run.py bicycle")
