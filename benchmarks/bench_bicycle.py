@@ -66,6 +66,39 @@ def bicycle_kane():
     return formed[0]
 
 
+def benchmark_values() -> dict:
+    """The benchmark bicycle's parameters under test_kane3's names (the conversion in
+    tests/constraints/test_whipple_bicycle.py, which follows that test)."""
+    import importlib.util
+
+    path = Path(__file__).resolve().parent.parent / "tests" / "constraints" / "test_whipple_bicycle.py"
+    spec = importlib.util.spec_from_file_location("whipple_bicycle", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module.benchmark_values()
+
+
+def upright_state(kane, system, values: dict):
+    """(q, independent u) of upright running at SPEED with a roll rate of 0.5 rad/s: zero yaw, roll
+    and steer, the pitch (test_kane3's dependent coordinate) from its configuration constraint."""
+    import numpy as np
+    import sympy as sp
+    from scipy.optimize import brentq
+
+    q = list(kane.q)
+    dependent = list(kane._qdep)  # private: sympy 1.14 keeps them only there
+    closure = sp.lambdify(dependent, kane._f_h[0].xreplace(values | {c: 0 for c in q if c not in dependent}))
+    pitch = brentq(closure, -1.0, 1.0)
+    x = np.zeros(system.layout.n_state)
+    x[q.index(dependent[0])] = pitch
+    speeds = {name: 0.0 for name in system.layout.speeds}
+    names = list(system.layout.speeds)
+    speeds[names[0]] = 0.5  # test_kane3's u_ind = (u2 roll rate, u4 rear wheel rate, u5 steer rate)
+    speeds[names[1]] = SPEED / values[next(c for c in values if c.name == "WRrad")]  # forward
+    x[len(q):] = [speeds[name] for name in names]
+    return x
+
+
 def add_arguments(group) -> None:
     group.add_argument("--bicycle-repeat", type=int, default=3, metavar="R", help="best of R runs (default 3)")
 
@@ -90,7 +123,8 @@ def worker_measure(quick: str, repeat: str) -> None:
     progress(f"bicycle: sympy formed the KanesMethod in {time.perf_counter() - start:.0f} s")
     t = sp.Symbol("t")
     constants = sorted((kane.mass_matrix_full.free_symbols | kane.forcing_full.free_symbols) - {t}, key=str)
-    values = {c: 0.5 + 0.1 * i for i, c in enumerate(constants)}  # any positive values; the timing needs no physics
+    benchmark = benchmark_values()
+    values = {c: benchmark[c.name] for c in constants}
 
     with tempfile.TemporaryDirectory() as cache:
         start = time.perf_counter()
@@ -109,10 +143,11 @@ def worker_measure(quick: str, repeat: str) -> None:
         progress(f"bicycle: PyDy generate + compile {time.perf_counter() - start:.1f} s")
 
         params = {c.name: v for c, v in values.items()}
-        n_q = len(kane.q)
-        ours_x0 = np.zeros(system.layout.n_state)
-        ours_x0[n_q:] = [0.3, SPEED / 0.5, 0.1][:system.layout.n_u]  # independent speeds
+        ours_x0 = upright_state(kane, system, values)
         full_x0 = np.concatenate([ours_x0, dependent_speeds(system, ours_x0, params)])
+        run = simulate(system, ours_x0, t_end=steps * 1e-3, h=1e-3, params=params, stride=steps)
+        if not run.ok:  # a run that stops early would time nothing
+            raise RuntimeError(f"the bicycle run stopped: {run.message}")
         seconds = best_seconds(lambda: simulate(system, ours_x0, t_end=steps * 1e-3, h=1e-3, params=params,
                                                 stride=steps, check_stability=False), repeat)
         ours_ns = seconds / steps * 1e9
@@ -141,6 +176,8 @@ def worker_measure(quick: str, repeat: str) -> None:
         # the same step both ways, as a check that the two codes integrate the same equations
         ours_one = simulate(system, ours_x0, t_end=0.01, h=1e-3, params=params, check_stability=False).x[-1]
         theirs_one = pydy_rk4(10)[:len(ours_one)]
+        if not np.allclose(ours_one, theirs_one, rtol=1e-9, atol=1e-9):  # not the same equations: no ratio
+            raise RuntimeError(f"10 RK4 steps differ: ours {ours_one}, PyDy's {theirs_one}")
         emit(ours_ns=ours_ns, pydy_rk4_ns=pydy_ns, pydy_rhs_ns=rhs_ns, steps=steps, pydy_steps=pydy_steps,
              agreement=float(np.max(np.abs(ours_one - theirs_one))), n_params=len(p))
     progress("bicycle: done")
