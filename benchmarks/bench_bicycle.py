@@ -156,12 +156,13 @@ def worker_measure(quick: str, repeat: str) -> None:
         p_pydy = np.array([values[c] for c in constants])
 
         def pydy_rk4(n: int) -> np.ndarray:
+            # copies: PyDy's Cython rhs returns the same output buffer at every call
             x, h = full_x0.copy(), 1e-3
             for i in range(n):
                 time_i = i * h
-                k1 = pydy_rhs(x, time_i, p_pydy)
-                k2 = pydy_rhs(x + h / 2 * k1, time_i + h / 2, p_pydy)
-                k3 = pydy_rhs(x + h / 2 * k2, time_i + h / 2, p_pydy)
+                k1 = pydy_rhs(x, time_i, p_pydy).copy()
+                k2 = pydy_rhs(x + h / 2 * k1, time_i + h / 2, p_pydy).copy()
+                k3 = pydy_rhs(x + h / 2 * k2, time_i + h / 2, p_pydy).copy()
                 k4 = pydy_rhs(x + h * k3, time_i + h, p_pydy)
                 x = x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
             return x
