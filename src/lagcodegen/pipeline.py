@@ -38,7 +38,7 @@ from .native.build import CompiledSystem, build_module
 from .native.build_cost import estimate_build_cost
 from .symbolic.derive import EquationsOfMotion, derive_equations
 
-SIMULATION_OUTPUTS = ("rhs", "energy", "points", "jacobian", "measurements", "reactions")
+SIMULATION_OUTPUTS = ("rhs", "energy", "points", "jacobian", "measurements", "reactions", "configuration")
 
 
 def compile_model(model: Model | EquationsOfMotion, *, outputs=None, fixed: Mapping | None = None,

@@ -81,6 +81,14 @@ def _reaction_rows(eom: EquationsOfMotion, a) -> list:
         [(("RB", i, 0), row.xreplace(zero)) for i, row in enumerate(rows)]
 
 
+def _configuration_rows(eom: EquationsOfMotion) -> list:
+    """("H", i, 0) = f_i(q, t), Kane's configuration constraints, and ("HJ", i, j) = df_i/dq_d(j)
+    for the dependent coordinates d: the Newton steps of the projection."""
+    f, q, dependent = eom.configuration, eom.q, eom.dependent_coordinates
+    return [(("H", i, 0), f[i]) for i in range(f.rows)] + \
+        [(("HJ", i, j), f[i].diff(q[d])) for i in range(f.rows) for j, d in enumerate(dependent)]
+
+
 def _jacobian_rows(eom: EquationsOfMotion, a) -> list:
     """M, then d/dx of G = M(q, t) a - F(q, u, r, t) (and of K when qd != u), x = (q, u), and
     d/dr of both (labels GR, DKR) when the model has inputs r.
@@ -139,6 +147,7 @@ KERNEL_ROWS: dict[str, Callable] = {
     "measurements": lambda eom, a: [(("Y", i, 0), y) for i, (_, y) in enumerate(eom.measurements)],
     "dependent": lambda eom, a: _dependent_rows(eom),
     "dependent_accelerations": _dependent_acceleration_rows,
+    "configuration": lambda eom, a: _configuration_rows(eom),
     "reactions": _reaction_rows,
 }
 
@@ -386,6 +395,50 @@ def _reactions_c(w: KernelWriter, kernel) -> dict:
                   "auxiliary equations at the accelerations there; returns a status code.", body)
 
 
+def _configuration_project_c(w: KernelWriter, kernel) -> dict:
+    """Newton on Kane's configuration constraints in the dependent coordinates, the others held."""
+    real, prefix = w.real, w.prefix
+    dependent = w.system.dependent_coordinates
+    k = len(dependent)
+    tolerance = literal(1e-12 if real == "double" else 1e-6, real)
+    fabs = "fabsf" if real == "float" else "fabs"
+    body = [f"{real} H[{k}], HJ[{k * k}];", "int i, iteration;",
+            "for (iteration = 0; iteration <= 10; ++iteration) {",
+            f"    {real} size = {literal(0, real)};",
+            f"    {prefix}_configuration_terms(t, x, p, H, HJ);",
+            f"    for (i = 0; i < {k}; ++i) {{",
+            f"        if ({fabs}(H[i]) > size) size = {fabs}(H[i]);",
+            "    }",
+            "    if (!isfinite(size)) return LCG_NONFINITE_STATE;",
+            f"    if (size <= {tolerance}) return LCG_OK;",
+            "    if (iteration == 10) return LCG_NEWTON_FAILED;",
+            f"    if (!{prefix}_dense_solve(HJ, H, {k}, 1)) return LCG_SINGULAR_CONSTRAINTS;"]
+    body += [f"    x[{d}] -= H[{j}];" for j, d in enumerate(dependent)]
+    body += ["}", "return LCG_NEWTON_FAILED;"]
+    names = ", ".join(w.system.q[d].name for d in dependent)
+    return record("int", f"{prefix}_project", f"{real} t, {real} *x, const {real} *p",
+                  f"Project x onto Kane's configuration constraints: Newton in the dependent coordinates ({names}), "
+                  "the others held (at most 10 steps, to rank_tolerance); returns a status code.", body)
+
+
+def _configuration_terms_function(w: KernelWriter) -> dict:
+    kernel = w.system.kernel("configuration")
+    k = len(w.system.dependent_coordinates)
+    body = w.head(kernel) + [f"H[{i}] = {w.expr(e, f'f[{i}]')};" for (i, _), e in results(kernel, "H").items()]
+    body += [f"HJ[{i * k + j}] = {w.expr(e, f'df[{i}]/dq_dep[{j}]')};" for (i, j), e in results(kernel, "HJ").items()]
+    return record("void", f"{w.prefix}_configuration_terms",
+                  f"{w.arguments}, {w.real} *H, {w.real} *HJ",
+                  "Kane's configuration constraints f(q, t) and their Jacobian in the dependent coordinates.",
+                  body, static=True)
+
+
+def _configuration_obstacle(eom: EquationsOfMotion) -> str | None:
+    if eom.n_dependent or not eom.m:
+        return None
+    return (f"the configuration projection of {eom.name!r} is not available with multipliers (its constraints "
+            "have their own projection)")
+
+
 def _multipliers_c(w: KernelWriter, kernel) -> dict:
     n, prefix, real, m = w.n_u, w.prefix, w.real, w.system.n_constraints
     body = [f"{real} qd[{w.n_q}], ud[{n}];",
@@ -484,6 +537,8 @@ OUTPUTS: dict[str, Output] = {o.name: o for o in (
            empty=lambda eom: not eom.n_dependent, checked=True),
     Output("reactions", "reactions", _reactions_c, empty=lambda eom: not eom.reactions, checked=True, default=True,
            requires=("accel",)),
+    Output("configuration", "configuration", _configuration_project_c, obstacle=_configuration_obstacle,
+           empty=lambda eom: not eom.dependent_coordinates, default=True),
 )}
 DEFAULT_OUTPUTS = tuple(name for name, o in OUTPUTS.items() if o.default)
 
@@ -536,8 +591,10 @@ def support_functions(w: KernelWriter) -> list:
     functions = []
     if any(o.checked for o in outputs):
         functions.append(_finite_result_function(w))
-    if w.n_dependent or w.system.reactions:
+    if w.n_dependent or w.system.reactions or w.system.dependent_coordinates:
         functions.append(_dense_solve_function(w))
+    if w.system.dependent_coordinates:
+        functions.append(_configuration_terms_function(w))
     if w.n_dependent:
         if any(o.kernel == "dynamics" for o in outputs):
             functions.append(_eliminated_solve_function(w))

@@ -79,6 +79,7 @@ class ReducedSystem:
     measurements: tuple = ()
     u_dependent: tuple = ()
     reactions: tuple = ()
+    dependent_coordinates: tuple = ()
 
     def kernel(self, name: str) -> ReducedKernel:
         for k in self.kernels:
@@ -118,6 +119,7 @@ def reduce_expressions(eom: EquationsOfMotion, outputs=DEFAULT_OUTPUTS,
     return ReducedSystem(
         name=eom.name, route=eom.route, t=eom.t, q=eom.q, u=eom.u[:independent], accelerations=accelerations,
         u_dependent=eom.u[independent:], reactions=tuple(eom.reactions) if "reactions" in outputs else (),
+        dependent_coordinates=tuple(eom.dependent_coordinates) if "configuration" in outputs else (),
         free_parameters=tuple(p for p in eom.parameters if p not in fixed_symbols),
         fixed_parameters=fixed_values, parameter_values=dict(eom.parameter_values),
         point_names=tuple(name for name, _ in eom.points),

@@ -151,7 +151,7 @@ def stepper_context(system, names, real: str, methods: list) -> dict:
                     "Many independent members, one after another.", [])
     context["sweep_decl"] = sweep["decl"]
     context["n_params_or_one"] = max(1, len(system.free_parameters))
-    context["can_project"] = "constraints" in system.outputs
+    context["can_project"] = "constraints" in system.outputs or "configuration" in system.outputs
     context["records_constraints"] = "constraints" in system.outputs
     context["records_multipliers"] = "multipliers" in system.outputs
     context["exported"].append(sweep)

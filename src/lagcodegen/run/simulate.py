@@ -320,7 +320,9 @@ def _outputs(system: CompiledSystem, **requested) -> dict:
     needs (the C driver skips a missing output, which would leave its array unwritten)."""
     layout = system.layout
     outputs = {name: flag(value, name) for name, value in requested.items()}
-    asked = [name for name in ("project", "residuals", "multipliers") if outputs[name]]
+    projects = f"{layout.prefix}_project" in layout.functions  # Kane's configuration constraints too
+    asked = [name for name in ("project", "residuals", "multipliers") if outputs[name]
+             and not (name == "project" and projects)]
     if asked and not layout.n_constraints:
         raise ValueError(f"{', '.join(asked)} need holonomic constraints; model {layout.model!r} has none")
     for name, output in NEEDED_OUTPUT.items():

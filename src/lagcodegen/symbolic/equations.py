@@ -73,6 +73,10 @@ class EquationsOfMotion:
         Unknown constraint forces (a contact's normal and friction forces) that Kane's auxiliary
         speeds expose; ``reaction_equations`` (one row per auxiliary speed, linear in them) hold
         in q, u and the accelerations, for which ``reaction_accelerations`` (one per speed) stand.
+    configuration : ImmutableMatrix (k, 1)
+        Kane's configuration constraints f(q, t) = 0, solved for the ``dependent_coordinates``
+        (indices into q) by the projection after a step; the dynamics reach them only through
+        the velocity constraints (sympy's rhs integrates those coordinates freely).
     """
 
     name: str
@@ -101,6 +105,8 @@ class EquationsOfMotion:
     reactions: tuple = ()
     reaction_equations: sp.ImmutableMatrix = sp.ImmutableMatrix(0, 1, [])
     reaction_accelerations: tuple = ()
+    configuration: sp.ImmutableMatrix = sp.ImmutableMatrix(0, 1, [])
+    dependent_coordinates: tuple = ()
 
     def display(self) -> tuple:
         """(M, F) as a textbook prints them (`display.display_form`); the emitted form is unchanged."""

@@ -32,7 +32,7 @@ def derive_from_sympy(model: Model):
         speeds = tuple(c.diff(TIME) for c in coords)
         kin_dynamic = sp.Matrix(speeds)
         route = "sympy LagrangesMethod"
-        n_dependent, auxiliary_equations = 0, None
+        n_dependent, auxiliary_equations, dependent_coordinates = 0, None, ()
     else:
         speeds = tuple(method.u)
         kindiff = method.kindiffdict()
@@ -40,6 +40,8 @@ def derive_from_sympy(model: Model):
         route = "sympy KanesMethod (Kane)"
         motion = []
         auxiliary_equations = method.auxiliary_eqs if auxiliary else None
+        dependent_coordinates = tuple(method._qdep)  # private: sympy 1.14 keeps them only there
+        configuration = sp.Matrix(method._f_h) if dependent_coordinates else None
         n_dependent = len(method._udep)  # private: sympy 1.14 keeps the split of the speeds only there
         if n_dependent:
             motion = list(method._k_nh * sp.Matrix(method.u) + method._f_nh)
@@ -75,6 +77,11 @@ def derive_from_sympy(model: Model):
         route += " (Lagrange II)"
     if auxiliary_equations is not None:
         eom = _with_reactions(eom, model, auxiliary_equations, coords, speeds, auxiliary, to_plain)
+    if dependent_coordinates:
+        from dataclasses import replace
+
+        eom = replace(eom, configuration=sp.ImmutableMatrix(to_plain(configuration, "configuration constraints")),
+                      dependent_coordinates=tuple(coords.index(c) for c in dependent_coordinates))
     return _with_route(eom, route)
 
 
