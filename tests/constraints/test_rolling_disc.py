@@ -154,3 +154,79 @@ def test_linearization_refuses_an_inconsistent_state():
 
     with pytest.raises(ValueError, match=r"violates constraint row 0 .*\(consistent_state\)"):
         linearize_state(derive_equations(rolling_disc()), [0, 0, 0, 0, 0, 0.0, 0, 0, 0, 1.0], values={})
+
+
+def _sympy_textbook_disc(linearized_at=None):
+    """The rolling disc of sympy's test_kane.test_rolling_disc (Kane; its rolling is built into
+    the velocities: the contact point has none): yaw q1, lean q2, spin q3, body rates u1..u3 in
+    the lean frame. Returns the lean acceleration u1'(q2, u2, u3) with u1 = 0, lambdified; or, with
+    ``linearized_at`` = (q2, u2, u3), the eigenvalues of sympy's own ``KanesMethod.linearize`` there."""
+    q1, q2, q3, u1, u2, u3 = me.dynamicsymbols("q1 q2 q3 u1 u2 u3")
+    r, m, g = sp.symbols("r m g")
+    N = me.ReferenceFrame("N")
+    Y = N.orientnew("Y", "Axis", [q1, N.z])
+    L = Y.orientnew("L", "Axis", [q2, Y.x])
+    R = L.orientnew("R", "Axis", [q3, L.y])
+    w_R_N_qd = R.ang_vel_in(N)
+    R.set_ang_vel(N, u1 * L.x + u2 * L.y + u3 * L.z)
+    C = me.Point("C")
+    C.set_vel(N, 0)
+    Dmc = C.locatenew("Dmc", r * L.z)
+    Dmc.v2pt_theory(C, N, R)
+    inertia = me.inertia(L, m / 4 * r ** 2, m / 2 * r ** 2, m / 4 * r ** 2)
+    kd = [me.dot(R.ang_vel_in(N) - w_R_N_qd, uv) for uv in L]
+    kane = me.KanesMethod(N, q_ind=[q1, q2, q3], u_ind=[u1, u2, u3], kd_eqs=kd)
+    kane.kanes_equations([me.RigidBody("disc", Dmc, R, m, (inertia, Dmc))], [(Dmc, -m * g * Y.z)])
+    if linearized_at is not None:
+        lean, spin, turn = linearized_at
+        A = kane.linearize(A_and_B=True, op_point={q1: 0, q2: lean, q3: 0, u1: 0, u2: spin, u3: turn})[0]
+        return np.linalg.eigvals(np.array(A.xreplace({r: 1, m: 1, g: 1}).evalf(), dtype=float))
+    rhs = kane.mass_matrix.LUsolve(kane.forcing).xreplace({r: 1, m: 1, g: 1, u1: 0})
+    return sp.lambdify([q2, u2, u3], rhs[0])
+
+
+def test_a_steady_turn_is_found_and_equals_the_textbook_discs():
+    """steady_motion on this file's disc (velocity constraints, multipliers): lean 0.3 rad turning at
+    psi' = 0.5 rad/s; the spin phi' that keeps the lean is the one for which sympy's own textbook
+    disc (a separate model, rolling in its velocities) has no lean acceleration: with u1 = 0,
+    u2 = phi' + psi' sin(lean), u3 = psi' cos(lean) in its lean frame. The other accelerations vanish
+    too, and the compiled nonlinear disc holds the turn."""
+    from scipy.optimize import brentq
+
+    from lagcodegen.statics.steady import steady_eigenvalues, steady_motion
+
+    eom = derive_equations(rolling_disc())
+    lean, yaw_rate = 0.3, 0.5
+    turn = steady_motion(eom, {"theta": lean, "psi_d": yaw_rate, "phi_d": 1.0},
+                         unknowns=["phi_d", "x_d", "y_d"], steady=["theta_d"])
+    spin = turn.values["phi_d"]
+    lean_acceleration = _sympy_textbook_disc()
+    reference = brentq(lambda phi_d: lean_acceleration(lean, phi_d + yaw_rate * np.sin(lean),
+                                                       yaw_rate * np.cos(lean)), spin - 0.5, spin + 0.5, xtol=1e-14)
+    assert abs(spin - reference) < 1e-10
+    np.testing.assert_allclose(turn.accelerations[[2, 3, 4]], 0.0, atol=1e-12)  # psi'', theta'', phi''
+    system = compile_model(eom, methods=("rk4",), outputs=("rhs", "constraints"))
+    run = simulate(system, turn.state, t_end=2.0, h=1e-3, project=True)
+    assert run.ok and np.abs(run["theta"] - lean).max() < 1e-9 and np.abs(run["psi_d"] - yaw_rate).max() < 1e-9
+    # its stability: the reduced linearization (x, y, yaw and spin cyclic) against sympy's own
+    # linearization of its textbook disc at the same motion: here an unstable pair +-0.2178
+    ours = np.sort_complex(steady_eigenvalues(eom, turn, cyclic=["x", "y", "psi", "phi"],
+                                              speeds=["psi_d", "theta_d", "phi_d"]))
+    theirs = _sympy_textbook_disc((lean, spin + yaw_rate * np.sin(lean), yaw_rate * np.cos(lean)))
+    theirs = np.sort_complex(theirs[np.abs(theirs) > 1e-9])
+    assert len(theirs) == 2 and theirs.real.max() > 0.2
+    for value in theirs:
+        assert np.abs(ours - value).min() < 1e-9, (ours, theirs)
+    assert np.sort(np.abs(ours))[:2].max() < 1e-9  # the other two: neutral (a neighbouring steady turn)
+
+
+def test_steady_motion_names_its_bad_input():
+    from lagcodegen.statics.steady import steady_motion
+
+    eom = derive_equations(rolling_disc())
+    with pytest.raises(ValueError, match="'lean' is no state"):
+        steady_motion(eom, {"theta": 0.3}, unknowns=["lean", "x_d", "y_d"], steady=["theta_d"])
+    with pytest.raises(ValueError, match="2 unknowns .* for 3 equations"):
+        steady_motion(eom, {"theta": 0.3}, unknowns=["x_d", "y_d"], steady=["theta_d"])
+    with pytest.raises(ValueError, match="'theta' is a coordinate"):
+        steady_motion(eom, {"theta": 0.3}, unknowns=["phi_d", "x_d", "y_d"], steady=["theta"])

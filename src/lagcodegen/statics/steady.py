@@ -1,0 +1,191 @@
+"""Stage: EquationsOfMotion -> steady motions (upright rolling, a disc's steady turn, a governor's
+relative equilibrium): states where chosen accelerations vanish while the system moves.
+
+A steady motion holds some coordinates constant (a lean angle) and some speeds constant (a spin, a
+yaw rate) while cyclic coordinates advance. Given the known parts of the state, `steady_motion`
+solves for the rest::
+
+    phi(q, t) = 0, A u + b = 0              (the model's constraints, when it has them)
+    ud_j(q, u, t) = 0 for every steady speed  (from M ud + A^T lambda = F, A ud = gamma)
+
+as many equations as unknowns (scipy's ``root``, MINPACK's hybrid method, from the given values),
+then `linearize_state` about the result gives its stability (``eigenvalues()`` in the directions
+the constraints allow). The accelerations come from the same Lagrange I solve `linearize_state`
+differentiates, lambdified once per model.
+"""
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import sympy as sp
+
+from ..symbolic.derive import EquationsOfMotion
+from .equilibria import named_point, resolve_values, substitute_values
+
+
+@dataclass(frozen=True)
+class SteadyMotion:
+    """A solved steady motion: ``state`` (q, u in the model's order, by name in ``values``), the
+    largest residual of the solved equations, and the accelerations of every speed there."""
+
+    names: tuple
+    state: np.ndarray
+    residual: float
+    accelerations: np.ndarray
+
+    @property
+    def values(self) -> dict:
+        return dict(zip(self.names, self.state.tolist()))
+
+
+def steady_motion(eom: EquationsOfMotion, given: Mapping, unknowns: Sequence[str], steady: Sequence[str], *,
+                  values: Mapping | None = None, t: float = 0.0, tol: float = 1e-10) -> SteadyMotion:
+    """Solve for a steady motion of ``eom``.
+
+    Parameters
+    ----------
+    given : mapping state name -> value
+        The known coordinates and speeds (a state not named is 0) and the starting guesses of the
+        unknowns.
+    unknowns : sequence of str
+        States solved for; as many as the constraint rows plus the steady speeds.
+    steady : sequence of str
+        Speeds whose accelerations vanish.
+    values : mapping parameter -> float, optional
+        Parameter values (default: the model's).
+
+    Raises ValueError naming the culprit: an unknown state name, a count of unknowns that does not
+    match the equations, or no convergence (with the residual reached).
+    """
+    from scipy.optimize import root
+
+    if not steady:
+        raise ValueError("steady motion: name at least one steady speed")
+    if eom.n_q != eom.n_u:
+        raise ValueError(f"steady motion: model {eom.name!r} has {eom.n_q} coordinates and {eom.n_u} speeds; "
+                         "steady motions need one speed per coordinate for now")
+    states = list(eom.q) + list(eom.u)
+    names = tuple(s.name for s in states)
+    if not isinstance(given, Mapping):
+        raise TypeError(f"given must map state names to values, got {type(given).__name__}")
+    known = {str(getattr(k, "name", k)): v for k, v in given.items()}
+    x0 = np.array(named_point(eom, states, {name: known.get(name, 0.0) for name in names} | known, "given",
+                              "state"), dtype=float)
+    index = {name: i for i, name in enumerate(names)}
+    for name in list(unknowns) + list(steady):
+        if name not in index:
+            raise ValueError(f"steady motion: {name!r} is no state of model {eom.name!r} (states: {', '.join(names)})")
+    speeds = {s.name: j for j, s in enumerate(eom.u)}
+    for name in steady:
+        if name not in speeds:
+            raise ValueError(f"steady motion: {name!r} is a coordinate; steady names speeds (their "
+                             "accelerations vanish)")
+    constraint_rows = eom.n_holonomic + eom.m  # phi of the holonomic ones, then A u + b of every row
+    rows = constraint_rows + len(steady)
+    if len(unknowns) != rows:
+        raise ValueError(f"steady motion: {len(unknowns)} unknowns ({', '.join(unknowns)}) for {rows} equations "
+                         f"({constraint_rows} constraint rows and {len(steady)} steady speeds)")
+    accelerations, constraints = _functions(eom, values, t)
+    solved = [index[name] for name in unknowns]
+    wanted = [speeds[name] for name in steady]
+
+    def equations(z: np.ndarray) -> np.ndarray:
+        x = x0.copy()
+        x[solved] = z
+        return np.concatenate([constraints(x), accelerations(x)[wanted]])
+
+    result = root(equations, x0[solved], method="hybr", options={"xtol": 1e-14})
+    x = x0.copy()
+    x[solved] = result.x
+    residual = float(np.max(np.abs(equations(result.x)), initial=0.0))
+    if not np.isfinite(residual) or residual > tol:
+        raise ValueError(f"steady motion of model {eom.name!r}: no solution from the given guesses (largest "
+                         f"residual {residual:.3g} after {result.nfev} evaluations: {result.message})")
+    return SteadyMotion(names, x, residual, accelerations(x))
+
+
+def steady_eigenvalues(eom: EquationsOfMotion, motion: SteadyMotion, cyclic: Sequence[str], speeds: Sequence[str],
+                       *, values: Mapping | None = None, t: float = 0.0) -> np.ndarray:
+    """Eigenvalues of the linearization about a steady motion, in the states it holds steady.
+
+    A steady motion is an equilibrium only of the reduced system without its ``cyclic`` coordinates
+    (yaw, spin, the contact point's x and y: coordinates the dynamics do not depend on, which
+    advance along the motion); the linearization of the full state at one instant of it is not
+    (its Jacobian turns with the cyclic coordinates). The reduced state is the other coordinates and
+    the independent ``speeds`` (n_u - m of them for m velocity constraints; the dependent ones are
+    solved from the constraints at every state); its Jacobian is taken by the complex step on the
+    same Lagrange I solve `steady_motion` uses (Routh's reduction; e.g. Neimark and Fufaev,
+    Dynamics of Nonholonomic Systems, ch. 4, for steady motions of a rolling disc).
+    """
+    names = list(motion.names)
+    q_names = [s.name for s in eom.q]
+    u_names = [s.name for s in eom.u]
+    for name in list(cyclic) + list(speeds):
+        if name not in names:
+            raise ValueError(f"steady eigenvalues: {name!r} is no state of model {eom.name!r}")
+    if any(name not in q_names for name in cyclic):
+        raise ValueError("steady eigenvalues: cyclic names coordinates")
+    if any(name not in u_names for name in speeds) or len(speeds) != eom.n_u - eom.m:
+        raise ValueError(f"steady eigenvalues: name {eom.n_u - eom.m} independent speeds of {', '.join(u_names)} "
+                         f"(one per speed not fixed by the {eom.m} velocity constraints)")
+    if eom.n_holonomic:
+        raise ValueError(f"steady eigenvalues: model {eom.name!r} has holonomic constraints; reduce it to "
+                         "independent coordinates first")
+    accelerations, _ = _functions(eom, values, t)
+    kept_q = [i for i, name in enumerate(q_names) if name not in cyclic]
+    kept_u = [u_names.index(name) for name in speeds]
+    dependent = [j for j in range(eom.n_u) if j not in kept_u]
+    n_q = eom.n_q
+    vals = {**resolve_values(eom, {} if values is None else values), eom.t: float(t)}
+    A = sp.lambdify([list(eom.q)], substitute_values(eom, sp.Matrix(eom.constraint_jacobian), vals, "A"), "numpy")
+    b = sp.lambdify([list(eom.q)], substitute_values(eom, sp.Matrix(eom.constraint_rate), vals, "b"), "numpy")
+    K = sp.lambdify([list(eom.q) + list(eom.u)], substitute_values(eom, sp.Matrix(eom.kinematics), vals, "K"),
+                    "numpy")
+
+    def reduced(s: np.ndarray) -> np.ndarray:
+        x = motion.state.astype(s.dtype)
+        x[kept_q] = s[:len(kept_q)]
+        x[[n_q + j for j in kept_u]] = s[len(kept_q):]
+        if dependent:  # A_D u_D = -(A_I u_I + b)
+            A_here = np.asarray(A(x[:n_q]), dtype=s.dtype)
+            rest = A_here[:, kept_u] @ x[[n_q + j for j in kept_u]] + np.asarray(b(x[:n_q]), dtype=s.dtype).ravel()
+            x[[n_q + j for j in dependent]] = np.linalg.solve(A_here[:, dependent], -rest)
+        rates = np.asarray(K(x), dtype=s.dtype).ravel()
+        return np.concatenate([rates[kept_q], accelerations(x)[kept_u]])
+
+    s0 = np.concatenate([motion.state[kept_q], motion.state[[n_q + j for j in kept_u]]])
+    step = 1e-30
+    J = np.empty((len(s0), len(s0)))
+    for k in range(len(s0)):
+        s = s0.astype(complex)
+        s[k] += 1j * step
+        J[:, k] = np.imag(reduced(s)) / step
+    return np.linalg.eigvals(J)
+
+
+def _functions(eom: EquationsOfMotion, values: Mapping | None, t: float) -> tuple:
+    """Numeric ud(x) of every speed (the Lagrange I solve when constrained) and the constraint rows
+    phi (holonomic) then A u + b (velocity), at time t with the parameters substituted."""
+    vals = {**resolve_values(eom, {} if values is None else values), eom.t: float(t)}
+    states = list(eom.q) + list(eom.u)
+    M, F = sp.Matrix(eom.mass_matrix), sp.Matrix(eom.forcing)
+    A = sp.Matrix(eom.constraint_jacobian)
+    m = eom.constraints.rows
+    K = sp.Matrix(sp.BlockMatrix([[M, A.T], [A, sp.zeros(m, m)]])) if m else M
+    rhs = sp.Matrix.vstack(F, sp.Matrix(eom.constraint_bias)) if m else F
+    K_f = sp.lambdify([states], substitute_values(eom, K, vals, "steady motion: M"), "numpy", cse=True)
+    rhs_f = sp.lambdify([states], substitute_values(eom, rhs, vals, "steady motion: F"), "numpy", cse=True)
+    rows = sp.Matrix.vstack(sp.Matrix(eom.constraints)[:eom.n_holonomic, :],
+                            A * sp.Matrix(eom.u) + sp.Matrix(eom.constraint_rate)) if m else sp.zeros(0, 1)
+    rows_f = sp.lambdify([states], substitute_values(eom, rows, vals, "steady motion: constraints"), "numpy")
+    n = eom.n_u
+
+    def accelerations(x: np.ndarray) -> np.ndarray:  # complex x too (the complex step)
+        return np.linalg.solve(np.asarray(K_f(x), dtype=x.dtype), np.asarray(rhs_f(x), dtype=x.dtype).ravel())[:n]
+
+    def constraints(x: np.ndarray) -> np.ndarray:
+        return np.asarray(rows_f(x), dtype=float).ravel()
+
+    return accelerations, constraints
