@@ -460,3 +460,22 @@ def test_so_that_kills_on_load_is_never_opened(cache_root, tmp_path):
     with pytest.raises(BuildError, match="checksum") as info:
         _in_subprocess(_unpickle_and_call, bare)
     assert str(system.path) in str(info.value)
+
+
+def test_an_edited_measurement_under_the_same_name_is_not_served_stale(tmp_path):
+    """Regression: the sources' cache key once left out measurements, so y = 2 x recompiled under
+    the same model name and cache returned y = x with status OK. Reference: y(0) = 2 x(0) by hand."""
+    import sympy as sp
+    import sympy.physics.mechanics as me
+
+    from lagcodegen import Model
+    from lagcodegen.pipeline import compile_model
+    from lagcodegen.run.simulate import simulate
+
+    x = me.dynamicsymbols("x")
+    m, k = sp.symbols("m k", positive=True)
+    for factor in (1, 2):
+        model = Model("oscillator_y", [x], [m, k], kinetic_energy=m * x.diff() ** 2 / 2, potential_energy=k * x ** 2 / 2,
+                      parameter_values={"m": 1.0, "k": 1.0}, measurements={"y": factor * x})
+        run = simulate(compile_model(model, methods=("rk4",), cache_dir=tmp_path), [1.5, 0.0], 0.01, 0.01)
+        assert run.measurements[0, 0] == factor * 1.5

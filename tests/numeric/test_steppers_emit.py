@@ -11,6 +11,7 @@
 """
 from __future__ import annotations
 
+import os
 import re
 from pathlib import Path
 
@@ -99,6 +100,35 @@ def test_sources_key_follows_the_package_code(monkeypatch):
     assert pipeline._sources_key(*args) == key
     monkeypatch.setattr(pipeline, "_package_digest", lambda: "an edited emitter")
     assert pipeline._sources_key(*args) != key
+
+
+def test_sources_key_follows_every_field_of_the_equations():
+    """A measurement, an input or a constraint edited under the same model name gets new sources
+    (these were once outside the key: a stale kernel with status OK)."""
+    import dataclasses
+
+    import sympy as sp
+
+    eom = derive_equations(catalog.double_pendulum())
+    args = (["rhs"], None, ("rk4",), "double")
+    key = pipeline._sources_key(eom, *args)
+    assert pipeline._sources_key(derive_equations(catalog.double_pendulum()), *args) == key  # a second derivation
+    q1 = eom.q[0]
+    for change in ({"measurements": (("y", q1),)}, {"measurements": (("y", 2 * q1),)},
+                   {"inputs": (sp.Symbol("tau"),)}, {"n_dependent": 1}):
+        assert pipeline._sources_key(dataclasses.replace(eom, **change), *args) != key, change
+
+
+def test_sources_key_is_the_same_in_every_process(tmp_path):
+    import subprocess
+    import sys
+
+    script = ("from lagcodegen import derive_equations, catalog, pipeline; "
+              "print(pipeline._sources_key(derive_equations(catalog.centrifugal_governor()), ['rhs'], None, "
+              "('rk4',), 'double'))")
+    keys = {subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, check=True,
+                           env={**os.environ, "PYTHONHASHSEED": seed}).stdout for seed in ("0", "1")}
+    assert len(keys) == 1, keys
 
 
 def test_code_digest_covers_every_module_and_template(tmp_path):
