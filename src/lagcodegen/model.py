@@ -529,8 +529,27 @@ def _as_load(load: Any) -> Load:
     return Load(where, vector)
 
 
+def _check_joints_connected(method) -> None:
+    """Every joint of a JointsMethod hangs from the Newtonian body through the others: sympy's own
+    error for a loose one ("Velocity of point ... has not been defined") names no joint."""
+    roots = [body for body in method.bodies if body.frame == method.frame]
+    connected = set(roots)
+    pending = list(method._joints)  # private: sympy 1.14 keeps the joints only there
+    while pending:
+        ready = [joint for joint in pending if joint.parent in connected]
+        if not ready:
+            joint = pending[0]
+            raise ModelError(f"JointsMethod: joint {joint.name!r} hangs from body {joint.parent.name!r}, which no "
+                             f"joint connects to the Newtonian body {roots[0].name if roots else method.frame}: "
+                             "add the joint that carries it")
+        for joint in ready:
+            connected.add(joint.child)
+            pending.remove(joint)
+
+
 def _sympy_model_coordinates(obj: Any) -> list:
     if isinstance(obj, me.JointsMethod):  # its bodies and joints formed into a Kane or Lagrange method
+        _check_joints_connected(obj)
         if obj.method is None:
             obj.form_eoms()
         return _sympy_model_coordinates(obj.method)

@@ -208,3 +208,19 @@ def test_bad_measurements_are_named(measurements, match):
     with pytest.raises(ModelError, match=match):
         Model("sensed", [x], [m], kinetic_energy=m * x.diff() ** 2 / 2, generalized_forces={x: F}, inputs=[F],
               measurements={name: table[key] for name, key in measurements.items()})
+
+
+def test_a_joints_method_with_a_loose_joint_is_named():
+    # sympy's own error ("Velocity of point c_masscenter has not been defined") names no joint
+    import warnings
+
+    q1, q2, u1, u2 = me.dynamicsymbols("q1 q2 u1 u2")
+    length = sp.Symbol("l")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # sympy 1.14 deprecates Body
+        ground, a, b, c = me.Body("ground"), me.Body("a", mass=m), me.Body("b", mass=m), me.Body("c", mass=m)
+        carried = me.PinJoint("j1", ground, a, coordinates=q1, speeds=u1, child_point=length * a.x)
+        loose = me.PinJoint("j2", b, c, coordinates=q2, speeds=u2, child_point=length * c.x)
+        method = me.JointsMethod(ground, carried, loose)
+    with raises_naming("joint 'j2'", "body 'b'", "Newtonian body ground"):
+        Model("loose", parameters=[m, length], sympy_model=method)
