@@ -397,3 +397,26 @@ def test_the_unit_norm_as_a_configuration_constraint_is_kept_by_projection():
         by_hand = 0.5 * (1.0 * run.x[:, 4] ** 2 + 2.0 * run.x[:, 5] ** 2 + 3.0 * run.x[:, 6] ** 2)
         np.testing.assert_allclose(run.energy, by_hand, rtol=1e-13)
     assert drift[True] < 1e-12 < 1e-11 < drift[False]
+
+
+def test_a_start_off_the_configuration_constraints_is_named_with_the_value_that_fits():
+    q0, q1, q2, q3 = me.dynamicsymbols("q0:4")
+    w1, w2, w3 = me.dynamicsymbols("w1:4")
+    I1, I2, I3 = sp.symbols("I1:4")
+    N = me.ReferenceFrame("N")
+    B = N.orientnew("B", "Quaternion", [q0, q1, q2, q3])
+    B.set_ang_vel(N, w1 * B.x + w2 * B.y + w3 * B.z)
+    O = me.Point("O")
+    O.set_vel(N, 0)
+    body = me.RigidBody("body", O, B, 1, (me.inertia(B, I1, I2, I3), O))
+    rates = sp.Matrix([[-q1, -q2, -q3], [q0, -q3, q2], [q3, q0, -q1], [-q2, q1, q0]]) * sp.Matrix([w1, w2, w3]) / 2
+    kd = [c.diff(me.dynamicsymbols._t) - rate for c, rate in zip((q0, q1, q2, q3), rates)]
+    kane = me.KanesMethod(N, q_ind=[q1, q2, q3], q_dependent=[q0], kd_eqs=kd, u_ind=[w1, w2, w3],
+                          configuration_constraints=[q0 ** 2 + q1 ** 2 + q2 ** 2 + q3 ** 2 - 1])
+    kane.kanes_equations([body], [])
+    system = compile_model(Model("quaternion_off", parameters=[I1, I2, I3], sympy_model=kane, frame=N),
+                           methods=["rk4"])
+    # q1 = 0.6: q0 = 0.8 fits (0.6^2 + 0.8^2 = 1, by hand); 0.9 does not
+    with pytest.raises(ValueError, match=r"q0 = 0\.9 \(fits: 0\.8"):
+        simulate(system, [0.6, 0.0, 0.0, 0.9, 0.1, 0.2, 0.3], 1.0, 0.01, params=INERTIA)
+    assert simulate(system, [0.6, 0.0, 0.0, 0.8, 0.1, 0.2, 0.3], 1.0, 0.01, params=INERTIA).ok

@@ -282,6 +282,7 @@ def simulate(system: CompiledSystem, x0, t_end: float, h: float, method: str = "
     p = parameter_vector(system, params)
     if system.layout.dependent_speeds:  # a singular constraint Jacobian at the start is bad input
         dependent_speeds(system, x, params, t0)
+    _check_configuration(system, x, p, t0)
     signal = resolve_inputs(system.layout, inputs, t0, h, n_steps, stride)
     ramp = hold_code(hold)
     if ramp and callable(signal):
@@ -303,6 +304,26 @@ def simulate(system: CompiledSystem, x0, t_end: float, h: float, method: str = "
     if not outputs["residuals"] and trajectory.residuals is not None:  # kept for the drift check only
         trajectory = replace(trajectory, residuals=None)
     return trajectory
+
+
+def _check_configuration(system: CompiledSystem, x: np.ndarray, p: np.ndarray, t0: float) -> None:
+    """x0 on Kane's configuration constraints (a model whose <prefix>_project solves them for its
+    dependent coordinates): else a ValueError naming each coordinate off and the value that fits."""
+    layout = system.layout
+    if layout.n_constraints or f"{layout.prefix}_project" not in layout.functions:
+        return
+    projected = np.array(x, dtype=real_dtype(system))
+    code = getattr(system.lib, f"{layout.prefix}_project")(t0, c_pointer(system, projected), c_pointer(system, p))
+    names = layout.coordinates
+    if code != Status.OK:
+        raise ValueError(f"x0 is on no configuration of model {layout.model!r} near it (Kane's configuration "
+                         f"constraints, solved for its dependent coordinates: {Status(code).message})")
+    tolerance = 1e-9 if projected.dtype == np.float64 else 1e-4
+    off = [i for i in range(layout.n_q) if abs(projected[i] - x[i]) > tolerance * (1 + abs(x[i]))]
+    if off:
+        fits = ", ".join(f"{names[i]} = {float(x[i])!r} (fits: {float(projected[i])!r})" for i in off)
+        raise ValueError(f"x0 violates the configuration constraints of model {layout.model!r}: {fits}; start "
+                         "from the values that fit")
 
 
 def compiled_method(system: CompiledSystem, method) -> str:
