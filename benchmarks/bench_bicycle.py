@@ -37,33 +37,17 @@ STEPS = {False: 20_000, True: 2_000}
 SPEED = 5.0  # m/s, upright with a small roll rate
 
 
-class _Formed(Exception):
-    """Stops sympy's test function once its KanesMethod has its equations."""
-
-
 def bicycle_kane():
-    """The KanesMethod test_kane3.test_bicycle forms (its later linearization checks are skipped)."""
-    import sympy.physics.mechanics as me
-    from sympy.physics.mechanics.tests import test_kane3
+    """The KanesMethod test_kane3.test_bicycle forms (its later linearization checks are skipped),
+    by the peer survey tool's `first_kane`."""
+    import importlib.util
 
-    original = me.KanesMethod.kanes_equations
-    formed = []
-
-    def record(self, *args, **kwargs):
-        original(self, *args, **kwargs)
-        formed.append(self)
-        raise _Formed
-
-    me.KanesMethod.kanes_equations = record
-    try:
-        test_kane3.test_bicycle()
-    except _Formed:
-        pass
-    finally:
-        me.KanesMethod.kanes_equations = original
-    if not formed:
-        raise RuntimeError("sympy's test_kane3.test_bicycle formed no KanesMethod")
-    return formed[0]
+    path = Path(__file__).resolve().parent.parent / "tools" / "sympy_peer_survey.py"
+    spec = importlib.util.spec_from_file_location("sympy_peer_survey", path)
+    survey = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = survey  # its dataclass looks itself up there
+    spec.loader.exec_module(survey)
+    return survey.first_kane("test_kane3", "test_bicycle")
 
 
 def benchmark_values() -> dict:

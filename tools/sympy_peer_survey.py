@@ -89,6 +89,35 @@ def collect(files=FILES) -> list:
     return [r for r in recorded if id(r.system) not in inner]
 
 
+class _Formed(Exception):
+    """Stops a sympy test function once its first KanesMethod has its equations."""
+
+
+def first_kane(file: str, test: str):
+    """The first KanesMethod that sympy's ``<file>.<test>`` forms, its later checks skipped (test_kane3's
+    own linearization takes a minute; its KanesMethod forms in a few seconds)."""
+    module = importlib.import_module(f"sympy.physics.mechanics.tests.{file}")
+    original, formed = me.KanesMethod.kanes_equations, []
+
+    def record(self, *args, **kwargs):
+        original(self, *args, **kwargs)
+        formed.append(self)
+        raise _Formed
+
+    me.KanesMethod.kanes_equations = record
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            getattr(module, test)()
+    except _Formed:
+        pass
+    finally:
+        me.KanesMethod.kanes_equations = original
+    if not formed:
+        raise RuntimeError(f"sympy's {file}.{test} formed no KanesMethod")
+    return formed[0]
+
+
 def method_of(obj):
     """The KanesMethod or LagrangesMethod behind a System or JointsMethod (or obj itself)."""
     if isinstance(obj, me.System):

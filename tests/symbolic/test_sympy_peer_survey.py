@@ -4,7 +4,8 @@ Every KanesMethod, LagrangesMethod, System and JointsMethod that the installed s
 form is either compiled and its rhs equals sympy's ``mass_matrix_full \\ forcing_full`` (the
 independent reference) at random states, parameters and inputs to 1e-10, or refused with one of
 the documented reasons below; 1 s of the compiled RK4 also follows scipy's DOP853 on sympy's rhs.
-The bicycle (test_kane3, two minutes of sympy) is left to the tool.
+test_kane3's bicycle runs on its own (sympy's test function stopped once its KanesMethod is formed:
+its own linearization checks take minutes).
 """
 from __future__ import annotations
 
@@ -110,3 +111,18 @@ def test_lagranges_method_constraints_by_kind():
     sliding, _, (L, m, g) = nonminimal_pendulum("nonholonomic")  # q1' = q2': a velocity constraint
     eom = derive_equations(Model("sliding", parameters=[m, g], sympy_model=sliding))
     assert "velocity constraints" in eom.route and eom.m == 1 and eom.n_holonomic == 0
+
+
+@pytest.mark.slow
+def test_the_whipple_bicycle_of_test_kane3_matches(tmp_path):
+    """The field's benchmark as sympy's test_kane3 builds it (Kane, CRAMER solver, 4 coordinates,
+    3 independent and 3 dependent speeds, the pitch dependent): sympy's rhs to 1e-10 at random
+    consistent states, and 1 s of RK4 follows DOP853 on sympy's rhs from a consistent start."""
+    spec = importlib.util.spec_from_file_location("sympy_peer_survey", TOOL)
+    survey = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = survey
+    spec.loader.exec_module(survey)
+    bicycle = survey.first_kane("test_kane3", "test_bicycle")
+    row = survey.check(survey.Recorded("test_kane3.test_bicycle", bicycle, "KanesMethod"), 0, tmp_path)
+    assert row["status"] == "matches", row
+    assert row["eliminated"] == 3 and row["max_error"] < 1e-10 and row["trajectory_error"] < 1e-8
