@@ -613,7 +613,10 @@ def _per_state(system: CompiledSystem, function: str, names: tuple, x, params, t
     """``<prefix>_<function>(t, x, [r,] p, out)`` at every state of ``x``; a status raises ValueError."""
     layout = system.layout
     dtype = real_dtype(system)
-    states = np.atleast_2d(np.asarray(x, dtype=dtype))
+    try:
+        states = np.atleast_2d(np.asarray(x, dtype=dtype))
+    except (TypeError, ValueError) as error:
+        raise ValueError(f"x must be numbers, {layout.n_state} per state: {error}") from None
     if states.ndim != 2 or states.shape[1] != layout.n_state:
         raise ValueError(f"x must hold {layout.n_state} values per state "
                          f"({', '.join(layout.coordinates + layout.speeds)}), got shape {np.shape(x)}")
