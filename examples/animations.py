@@ -2,9 +2,10 @@
 centrifugal governor (3-D, seen from 20 degrees above), the slider-crank and the four-bar.
 
 Each is compiled with RK4, run for a second from a consistent state, and written as a
-GIF in real time: the links of the model, a trace of its last point, the time and the relative
-energy change (for the driven slider-crank and four-bar and the spun governor that is the work
-done on them, not an error).
+GIF in real time: the links of the model, a trace of its last point, the frames of its rigid
+bodies as small x/y/z triads (slider-crank, four-bar), the time and the relative energy change
+(for the driven slider-crank and four-bar and the spun governor that is the work done on them,
+not an error).
 
 Run: python examples/animations.py [OUT_DIR]     (default: a new temporary directory)
 The same from the command line: lagcodegen animate --help.
@@ -13,6 +14,8 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+
+import sympy.physics.mechanics as me
 
 from lagcodegen import catalog
 from lagcodegen.analysis.animation import animate
@@ -38,8 +41,9 @@ def main(out_dir: Path) -> None:
         constrained = bool(model.constraints)  # closed loops: projected back onto phi = 0 every step
         run = simulate(system, x0, T_END, H, energy=True, points=True, project=constrained).check()
         out = out_dir / f"{name}.gif"
+        rigid = any(isinstance(body, me.RigidBody) for body in model.bodies)
         animate(run, out, links=model.links or None, trace=[run.point_names[-1]], projection=projection,
-                title=f"{name} (rk4, h = {H:g})", size=(4.0, 4.0), dpi=60)
+                title=f"{name} (rk4, h = {H:g})", size=(4.0, 4.0), dpi=60, frames=model if rigid else None)
         print(f"{name:22s} points {', '.join(run.point_names)}: wrote {out} "
               f"({out.stat().st_size / 1024:.0f} KiB, {time.perf_counter() - start:.1f} s)")
 

@@ -16,6 +16,7 @@ Independent sources of the expected values:
 from __future__ import annotations
 
 import dataclasses
+import inspect
 import math
 
 import numpy as np
@@ -315,3 +316,142 @@ def test_cli_out_directory_is_named(tmp_path, capsys):
     code = main(["animate", "double_pendulum", "--x0", "q1=1,q2=0", "--t-end", "0.1", "--out", str(tmp_path)])
     err = capsys.readouterr().err
     assert code == 2 and f"--out '{tmp_path}' is a directory" in err, err
+
+
+# -- the rigid bodies' frames (frames=) ---------------------------------------------------------
+# Independent sources: the compound pendulum's geometry by hand (a rod of length l hinged at the
+# origin, at angle q from the downward vertical: mass centre l/2 (sin q, -cos q), its x axis the
+# inertial x rotated by q about z, (cos q, sin q)); the 3-D body's rotation matrix by hand,
+# Rz(a) Rx(b), whose columns are the body's axes in the inertial frame.
+def compound_pendulum(extra_body=None) -> Model:
+    import sympy as sp
+    import sympy.physics.mechanics as me
+
+    q = me.dynamicsymbols("q")
+    m, l, g = sp.symbols("m l g", positive=True)
+    N, O, B = me.ReferenceFrame("N"), me.Point("O"), me.ReferenceFrame("B")
+    B.orient_axis(N, N.z, q)
+    G = O.locatenew("G", -l / 2 * B.y)
+    rod = me.RigidBody("rod", G, B, m, (m * l ** 2 / 12 * me.outer(B.z, B.z), G))
+    tip = O.locatenew("tip", -l * B.y)
+    return Model("compound_pendulum", [q], (m, l, g), bodies=[rod], gravity=-g * N.y, frame=N, origin=O,
+                 points={"tip": tip}, parameter_values={m: 1.0, l: 0.8, g: 9.81})
+
+
+def run_of(names, columns, point_names=("tip",)) -> Trajectory:
+    t = np.linspace(0.0, 0.2, 21)
+    x = np.zeros((t.size, len(names)))
+    for i, column in enumerate(columns):
+        x[:, i] = column(t)
+    return Trajectory(t=t, x=x, names=tuple(names), energy=None, points=np.zeros((t.size, len(point_names), 3)),
+                      point_names=tuple(point_names), status=Status.OK, failed_step=None, failed_time=None,
+                      method="rk4", h=0.01)
+
+
+@pytest.mark.parametrize("k", [0, 3, 5])
+def test_compound_pendulum_triad_is_the_hand_rotation(k):
+    run = run_of(("q", "q_d"), [lambda t: 0.4 + 5 * t, lambda t: 5 + 0 * t])
+    scene = compose_scene(run, frames=compound_pendulum(), frame_size=0.25)
+    fig, update = draw_scene(scene)
+    artists = by_label(update(k))
+    sample = int(scene.samples[k])
+    q, l = 0.4 + 5 * run.t[sample], 0.8
+    centre = np.array([l / 2 * math.sin(q), -l / 2 * math.cos(q)])  # by hand
+    x_end = centre + 0.25 * np.array([math.cos(q), math.sin(q)])
+    y_end = centre + 0.25 * np.array([-math.sin(q), math.cos(q)])
+    np.testing.assert_allclose(np.column_stack(artists["frame rod x"].get_data()), [centre, x_end], atol=1e-12)
+    np.testing.assert_allclose(np.column_stack(artists["frame rod y"].get_data()), [centre, y_end], atol=1e-12)
+    # z is along the line of sight in "xy": a zero-length segment at the mass centre
+    np.testing.assert_allclose(np.column_stack(artists["frame rod z"].get_data()), [centre, centre], atol=1e-12)
+    assert artists["frame rod x"].get_color() == "tab:red"
+    assert scene.triad_names == ("rod",)
+
+
+def test_params_override_the_model_values():
+    run = run_of(("q", "q_d"), [lambda t: 0.0 * t, lambda t: 0.0 * t])
+    scene = compose_scene(run, frames=compound_pendulum(), frame_size=0.1, params={"l": 2.0})
+    np.testing.assert_allclose(scene.triads[0, 0, 0], [[0.0, -1.0], [0.1, -1.0]], atol=1e-12)  # l/2 below O
+
+
+def test_default_frame_size_is_a_fraction_of_the_extent():
+    run = run_of(("q", "q_d"), [lambda t: 0.0 * t, lambda t: 0.0 * t])
+    scene = compose_scene(run, frames=compound_pendulum())
+    # points at 0 (tip not moving here: zeros) and the mass centre at (0, -0.4): extent 0.4
+    np.testing.assert_allclose(scene.triads[0, 0, 0, 1] - scene.triads[0, 0, 0, 0], [0.15 * 0.4, 0.0], atol=1e-12)
+
+
+def test_3d_body_triad_is_the_hand_rotation_matrix_projected():
+    import sympy as sp
+    import sympy.physics.mechanics as me
+
+    a, b = me.dynamicsymbols("a b")
+    m, d = sp.symbols("m d", positive=True)
+    N, O, A, B = (me.ReferenceFrame("N"), me.Point("O"), me.ReferenceFrame("A"), me.ReferenceFrame("B"))
+    A.orient_axis(N, N.z, a)
+    B.orient_axis(A, A.x, b)
+    G = O.locatenew("G", d * B.z)
+    body = me.RigidBody("top", G, B, m, (me.inertia(B, 1, 2, 3), G))
+    model = Model("top", [a, b], (m, d), bodies=[body], frame=N, origin=O, points={"G": G},
+                  parameter_values={m: 1.0, d: 0.5})
+    run = run_of(("a", "b", "a_d", "b_d"), [lambda t: 0.3 + 2 * t, lambda t: -0.7 + 3 * t,
+                                            lambda t: 2 + 0 * t, lambda t: 3 + 0 * t], point_names=("G",))
+    scene = compose_scene(run, frames=model, frame_size=0.2, projection="xy")
+    for s in (0, 10, 20):
+        ca, sa = math.cos(run.x[s, 0]), math.sin(run.x[s, 0])
+        cb, sb = math.cos(run.x[s, 1]), math.sin(run.x[s, 1])
+        R = np.array([[ca, -sa, 0], [sa, ca, 0], [0, 0, 1]]) @ np.array([[1, 0, 0], [0, cb, -sb], [0, sb, cb]])
+        centre = 0.5 * R[:, 2]
+        for i in range(3):
+            np.testing.assert_allclose(scene.triads[s, 0, i], [centre[:2], (centre + 0.2 * R[:, i])[:2]],
+                                       atol=1e-12)
+
+
+def test_frames_of_a_model_without_rigid_bodies_names_it():
+    run = run_of(("q1", "q2", "q1_d", "q2_d"), [lambda t: 0 * t] * 4, point_names=("bob1", "bob2"))
+    with pytest.raises(AnimationError, match=r"model 'double_pendulum' has no rigid bodies"):
+        compose_scene(run, frames=catalog.double_pendulum())
+
+
+def test_body_frame_not_expressible_names_the_body():
+    import sympy as sp
+    import sympy.physics.mechanics as me
+
+    model = compound_pendulum()
+    # Model validates its bodies, so a stray body is put in afterwards: a frame oriented to nothing
+    loose_frame, loose_centre = me.ReferenceFrame("L"), me.Point("L0")
+    loose_centre.set_pos(model.origin, 0)
+    loose = me.RigidBody("loose", loose_centre, loose_frame, sp.S.One, (me.inertia(loose_frame, 1, 1, 1), loose_centre))
+    object.__setattr__(model, "bodies", (*model.bodies, loose))
+    run = run_of(("q", "q_d"), [lambda t: 0 * t] * 2)
+    with pytest.raises(AnimationError, match=r"body 'loose' \(its frame L\) cannot be expressed in the model's frame N"):
+        compose_scene(run, frames=model)
+
+
+
+
+@needs_cc
+@pytest.mark.parametrize("option, drawn", [((), True), (("--no-frames",), False)])
+def test_cli_draws_frames_of_a_bodies_model(tmp_path, capsys, monkeypatch, option, drawn):
+    from PIL import Image
+
+    from lagcodegen.analysis import animation
+
+    seen = []
+    original = animation.draw_scene
+    monkeypatch.setattr(animation, "draw_scene", lambda scene, **kw: seen.append(scene) or original(scene, **kw))
+    path = tmp_path / "rod.py"
+    path.write_text("from lagcodegen.model import Model\n\n" + inspect.getsource(compound_pendulum)
+                    + "\n\nmodel = compound_pendulum()\n")
+    out = tmp_path / "rod.gif"
+    code = main(["animate", str(path), "--x0", "q=1", "--t-end", "0.08", *option, "--out", str(out)])
+    assert code == 0, capsys.readouterr().err
+    with Image.open(out) as gif:
+        assert gif.n_frames == 3
+    assert (seen[0].triad_names == ("rod",)) is drawn
+
+
+def test_cli_frames_on_a_model_without_rigid_bodies_is_named(tmp_path, capsys):
+    code = main(["animate", "double_pendulum", "--x0", "q1=1,q2=0", "--t-end", "0.1", "--frames",
+                 "--out", str(tmp_path / "s.gif")])
+    assert code == 2
+    assert "--frames: model 'double_pendulum' has no rigid bodies" in capsys.readouterr().err

@@ -1,7 +1,8 @@
 """Stage: Scene -> figures and files: animations of a run, written as GIF or MP4.
 
 The named points of a run (``simulate(..., points=True)``) drawn frame by frame: segments for
-the links between them, a trace of chosen points, and a clock with the relative energy change
+the links between them, a trace of chosen points, the frames of a model's rigid bodies as small
+x/y/z triads (``frames=model``, `triads`), and a clock with the relative energy change
 (E - E0) / |E0| when the run recorded the energy (an energy *error* for a conservative model;
 for a driven or rheonomic one it is the work done on it). `scenes.compose_scene` picks the
 frames and projects the points (numbers), `draw_scene` builds the figure and the function that
@@ -26,6 +27,8 @@ if TYPE_CHECKING:
 
 #: the file types `animate` writes, by suffix
 FORMATS = (".gif", ".mp4")
+#: colours of a body frame's x, y, z axes
+TRIAD_COLOURS = ("tab:red", "tab:green", "tab:blue")
 
 
 def draw_scene(scene: Scene, *, title: str | None = None, size=(5.0, 5.0),
@@ -34,7 +37,8 @@ def draw_scene(scene: Scene, *, title: str | None = None, size=(5.0, 5.0),
 
     Every artist carries a label: ``"link a-b"`` per link, ``"points"`` (the drawn points, in
     ``scene.names[1:]`` order), ``"trace name"`` per traced point, ``"origin"`` (when a link
-    uses it) and ``"clock"`` (the time and energy text).
+    uses it), ``"frame body x"`` (and y, z) per axis of a body's frame when the scene has
+    ``triads``, and ``"clock"`` (the time and energy text).
     """
     from matplotlib.figure import Figure  # Agg canvas via savefig; no pyplot, no GUI
 
@@ -47,6 +51,9 @@ def draw_scene(scene: Scene, *, title: str | None = None, size=(5.0, 5.0),
     traces = [ax.plot([], [], linewidth=1.0, alpha=0.7, label=f"trace {scene.names[i]}")[0] for i in scene.trace]
     links = [ax.plot([], [], "-", linewidth=2.5, color="dimgray", solid_capstyle="round",
                      label=f"link {scene.names[i]}-{scene.names[j]}")[0] for i, j in scene.links]
+    axes = [(b, i, ax.plot([], [], "-", linewidth=1.2, color=TRIAD_COLOURS[i], zorder=5,
+                           label=f"frame {name} {'xyz'[i]}")[0])
+            for b, name in enumerate(scene.triad_names) for i in range(3)]
     markers = ax.plot([], [], "o", markersize=8, color="tab:blue", label="points", zorder=3)[0]
     clock = ax.text(0.02, 0.98, "", transform=ax.transAxes, va="top", ha="left", family="monospace",
                     fontsize=8, label="clock")
@@ -59,8 +66,10 @@ def draw_scene(scene: Scene, *, title: str | None = None, size=(5.0, 5.0),
         markers.set_data(frame[1:, 0], frame[1:, 1])
         for line, i in zip(traces, scene.trace):
             line.set_data(scene.xy[:sample + 1, i, 0], scene.xy[:sample + 1, i, 1])
+        for b, i, line in axes:
+            line.set_data(scene.triads[sample, b, i, :, 0], scene.triads[sample, b, i, :, 1])
         clock.set_text(clock_text(scene, sample))
-        return [*traces, *links, markers, clock]
+        return [*traces, *links, markers, *(line for _, _, line in axes), clock]
 
     update(0)
     return fig, update
@@ -110,7 +119,7 @@ def check_output(out, what: str = "out") -> Path:
 def animate(trajectory: Trajectory, out=None, *, points: Sequence[str] | None = None,
             links: Sequence[tuple[str, str]] | None = None, trace: Sequence[str] = (), fps: float = DEFAULT_FPS,
             speed: float = 1.0, projection=None, title: str | None = None, size=(5.0, 5.0),
-            dpi: float = 80) -> FuncAnimation:
+            dpi: float = 80, frames=None, frame_size: float | None = None, params=None) -> FuncAnimation:
     """Animate the named points of a run; write it to ``out`` (.gif or .mp4) when given.
 
     Parameters
@@ -140,6 +149,15 @@ def animate(trajectory: Trajectory, out=None, *, points: Sequence[str] | None = 
     title : str, optional
     size, dpi
         Figure size in inches and resolution of the written frames.
+    frames : Model, optional
+        The model of the run, on the bodies route: each of its RigidBodies' frames is drawn as a
+        thin triad (x red, y green, z blue) at its mass centre, from the run's coordinates
+        (`triads.body_frames`; `AnimationError` naming the model when it has no rigid body).
+    frame_size : float, optional
+        The triads' length (default: 0.15 of the largest extent of the points and mass centres).
+    params : mapping of str -> float, optional
+        Parameter values for the frames over the model's ``parameter_values`` (the run's, if
+        it was run with others).
 
     Returns
     -------
@@ -175,7 +193,7 @@ def animate(trajectory: Trajectory, out=None, *, points: Sequence[str] | None = 
     target = None if out is None else check_output(out)
     gif = target is not None and target.suffix.lower() == ".gif"
     scene = compose_scene(trajectory, points=points, links=links, trace=trace, fps=fps, speed=speed,
-                          projection=projection, gif=gif)
+                          projection=projection, gif=gif, frames=frames, frame_size=frame_size, params=params)
     fig, update = draw_scene(scene, title=title, size=size, dpi=dpi)
     from matplotlib.animation import FuncAnimation
 

@@ -57,6 +57,11 @@ class Scene:
         Simulated seconds per second of playback.
     axis_labels : (str, str)
         The screen axes' names ("x", "y", or "view" ones for a projection by angles).
+    triads : ndarray (n_samples, n_bodies, 3, 2, 2) or None
+        The rigid bodies' frames (``frames=``): ``triads[s, b, i]`` is the projected segment
+        (start, end) of body b's axis i (x, y, z), from its mass centre ``frame_size`` long.
+    triad_names : tuple of str, (n_bodies,)
+        The bodies whose frames ``triads`` holds.
     """
 
     names: tuple
@@ -70,6 +75,8 @@ class Scene:
     interval: float
     speed: float
     axis_labels: tuple
+    triads: np.ndarray | None = None
+    triad_names: tuple = ()
 
     @property
     def n_frames(self) -> int:
@@ -143,7 +150,8 @@ def frame_interval(fps: float, gif: bool) -> float:
 
 def compose_scene(trajectory: Trajectory, *, points: Sequence[str] | None = None,
                   links: Sequence[tuple[str, str]] | None = None, trace: Sequence[str] = (),
-                  fps: float = DEFAULT_FPS, speed: float = 1.0, projection=None, gif: bool = False) -> Scene:
+                  fps: float = DEFAULT_FPS, speed: float = 1.0, projection=None, gif: bool = False,
+                  frames=None, frame_size: float | None = None, params=None) -> Scene:
     """The frames of an animation of ``trajectory``, as numbers (see `animate` for the arguments)."""
     if trajectory.point_names and trajectory.points is None:
         raise AnimationError(f"the trajectory holds no positions of its points ({', '.join(trajectory.point_names)}): "
@@ -159,8 +167,27 @@ def compose_scene(trajectory: Trajectory, *, points: Sequence[str] | None = None
     speed = _positive(speed, "speed")
     change, relative = energy_change(trajectory)
     t = np.asarray(trajectory.t, dtype=np.float64)
+    triads, triad_names = (None, ()) if frames is None else \
+        project_triads(trajectory, frames, positions, projection, frame_size, params)
     return Scene(names=names, xy=xy, t=t, samples=frame_samples(t, interval, speed), links=pairs, trace=traced,
-                 energy_change=change, relative=relative, interval=interval, speed=speed, axis_labels=labels)
+                 energy_change=change, relative=relative, interval=interval, speed=speed, axis_labels=labels,
+                 triads=triads, triad_names=triad_names)
+
+
+def project_triads(trajectory: Trajectory, model, positions: np.ndarray, projection=None,
+                   size: float | None = None, params=None) -> tuple[np.ndarray, tuple]:
+    """The projected frames of ``model``'s rigid bodies (`triads.body_frames`), each axis a segment
+    ``size`` long from the mass centre (default: `triads.frame_size` of ``positions (n_samples,
+    n_points, 3)`` and the mass centres); (ndarray (n_samples, n_bodies, 3, 2, 2), body names)."""
+    from .triads import body_frames, frame_size
+
+    names, centres, axes = body_frames(model, trajectory, params)
+    if size is None:
+        size = frame_size(np.concatenate([positions.reshape(-1, 3), centres.reshape(-1, 3), np.zeros((1, 3))]))
+    size = _positive(size, "frame_size")
+    starts = np.broadcast_to(centres[:, :, None, :], axes.shape)
+    segments = np.stack([starts, starts + size * axes], axis=-2)  # (n_samples, n_bodies, 3, 2, 3)
+    return project(segments, projection)[0], names
 
 
 def scene_names(point_names: Sequence[str], points: Sequence[str] | None = None,

@@ -30,6 +30,7 @@ The points are the model's named points (Model(points=...)); segments join the m
 Playback is real time (--speed 1): a GIF's frame delay is a whole number of hundredths of a second,
 so --fps is rounded to match. MP4 needs ffmpeg. The overlay shows t and (E - E0)/|E0| when the model
 has energies (for a driven or rheonomic model that is the work done on it, not an error).
+Rigid bodies' frames are drawn as small triads at their mass centres (--no-frames to leave them out).
 Exit code 0, 1 when the run stopped early (what ran is still animated), 2 for a bad command line.
 """
 
@@ -78,7 +79,8 @@ def animation_request(args) -> tuple:
     request = {"points": None if args.points is None else [name.strip() for name in args.points.split(",")],
                "links": parse_links(args.links) or model.links or None,
                "trace": [] if args.trace is None else [name.strip() for name in args.trace.split(",")],
-               "projection": parse_projection(args.projection), "fps": args.fps, "speed": args.speed}
+               "projection": parse_projection(args.projection), "fps": args.fps, "speed": args.speed,
+               "frames": model if draws_frames(model, getattr(args, "frames", None)) else None}
     try:
         scene_names(tuple(model.points), request["points"], request["links"], request["trace"], prefix="--")
         project(np.zeros(3), request["projection"])
@@ -86,6 +88,17 @@ def animation_request(args) -> tuple:
         message = str(error)
         raise UsageError(message if message.startswith("--") else f"--{message}") from None
     return model, target, request
+
+
+def draws_frames(model, option: bool | None) -> bool:
+    """Whether ``lagcodegen animate`` draws the bodies' frames: ``--frames``/``--no-frames``, by
+    default when the model has rigid bodies; ``--frames`` on a model without them is a UsageError."""
+    import sympy.physics.mechanics as me
+
+    rigid = any(isinstance(body, me.RigidBody) for body in model.bodies)
+    if option and not rigid:
+        raise UsageError(f"--frames: model {model.name!r} has no rigid bodies whose frames could be drawn")
+    return rigid if option is None else option
 
 
 def cmd_animate(args) -> int:
@@ -105,7 +118,8 @@ def cmd_animate(args) -> int:
     except InputError as error:
         raise UsageError(f"--input: {error}") from None
     print(f"{eom.name}, {run.method}, h = {args.h:g} to t = {args.t_end:g}: {run.message}")
-    animate(run, target, title=f"{eom.name} ({run.method}, h = {args.h:g})", **request)
+    animate(run, target, title=f"{eom.name} ({run.method}, h = {args.h:g})", params={**fixed, **params},
+            **request)
     print(f"wrote {target} ({run.t[-1] - run.t[0]:g} s simulated, {args.speed:g}x real time)")
     return EXIT_OK if run.ok else EXIT_FAILED
 
@@ -129,4 +143,7 @@ def add_animate_parser(commands) -> None:
     animate.add_argument("--projection", metavar="xy|xz|zy|ELEV,AZIM",
                          help="screen plane of 3-D models: two axes, or a view by elevation and azimuth in "
                               "degrees (default: xy; a negative elevation as --projection=-20,30)")
+    animate.add_argument("--frames", action=argparse.BooleanOptionalAction, default=None,
+                         help="draw each rigid body's frame (x red, y green, z blue) at its mass centre "
+                              "(default: on when the model has rigid bodies)")
     animate.set_defaults(run=cmd_animate)
