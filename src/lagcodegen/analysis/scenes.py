@@ -16,6 +16,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from .triads import AnimationError, body_frames, frame_size
+
 if TYPE_CHECKING:
     from ..run.simulate import Trajectory
 
@@ -24,10 +26,6 @@ ORIGIN = "origin"
 #: default frames per second: 40 ms, a whole number of a GIF's hundredths of a second
 DEFAULT_FPS = 25.0
 _AXES = "xyz"
-
-
-class AnimationError(ValueError):
-    """An animation cannot be made as asked; the message names the culprit."""
 
 
 @dataclass(frozen=True)
@@ -179,8 +177,6 @@ def project_triads(trajectory: Trajectory, model, positions: np.ndarray, project
     """The projected frames of ``model``'s rigid bodies (`triads.body_frames`), each axis a segment
     ``size`` long from the mass centre (default: `triads.frame_size` of ``positions (n_samples,
     n_points, 3)`` and the mass centres); (ndarray (n_samples, n_bodies, 3, 2, 2), body names)."""
-    from .triads import body_frames, frame_size
-
     names, centres, axes = body_frames(model, trajectory, params)
     if size is None:
         size = frame_size(np.concatenate([positions.reshape(-1, 3), centres.reshape(-1, 3), np.zeros((1, 3))]))

@@ -13,7 +13,10 @@ from collections.abc import Mapping
 import numpy as np
 import sympy as sp
 
-from .scenes import AnimationError
+
+class AnimationError(ValueError):
+    """An animation cannot be made as asked; the message names the culprit."""
+
 
 #: the default triad length, as a fraction of the largest extent of the drawn positions
 FRAME_FRACTION = 0.15
