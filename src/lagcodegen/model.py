@@ -532,7 +532,7 @@ def _as_load(load: Any) -> Load:
 def _check_joints_connected(method) -> None:
     """Every joint of a JointsMethod hangs from the Newtonian body through the others: sympy's own
     error for a loose one ("Velocity of point ... has not been defined") names no joint."""
-    roots = [body for body in method.bodies if body.frame == method.frame]
+    roots = [body for body in method.bodies if getattr(body, "frame", None) == method.frame]
     connected = set(roots)
     pending = list(method._joints)  # private: sympy 1.14 keeps the joints only there
     while pending:
