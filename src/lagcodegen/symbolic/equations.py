@@ -258,7 +258,7 @@ def _immutable(matrix) -> sp.ImmutableMatrix:
 
 
 def assemble(model, coords, speeds, q, u, M, F, K, T, V, to_plain, inputs_checked=False,
-             positions=None, constraints=None, motion=None) -> EquationsOfMotion:
+             positions=None, constraints=None, motion=None, motion_rates=None) -> EquationsOfMotion:
     """The equations object; M and F are searched for undeclared symbols unless every input
     went through a ``to_plain`` that checks them (``inputs_checked``). ``positions`` maps Points
     whose components in the model's frame are already known (in plain symbols). ``constraints``
@@ -311,7 +311,9 @@ def assemble(model, coords, speeds, q, u, M, F, K, T, V, to_plain, inputs_checke
         if phi.rows:
             blocks.append(dict(holonomic_terms(phi, q, u, TIME), phi=phi))
         if w.rows:
-            blocks.append(motion_terms(w, q, u, TIME, K))
+            rates = None if motion_rates is None else \
+                sp.Matrix(to_plain(sp.Matrix(motion_rates), "acceleration constraints"))
+            blocks.append(motion_terms(w, q, u, TIME, K, rates=rates))
         stack = lambda key: sp.ImmutableMatrix(sp.Matrix.vstack(*[sp.Matrix(b[key]) for b in blocks]))  # noqa: E731
         constrained = {"constraints": stack("phi"), "constraint_jacobian": stack("A"),
                        "constraint_rate": stack("phi_t"), "constraint_bias": stack("gamma"),

@@ -33,15 +33,17 @@ def holonomic_terms(phi: sp.Matrix, q, u, t) -> dict:
             "gamma": sp.ImmutableMatrix(gamma)}
 
 
-def motion_terms(w: sp.Matrix, q, u, t, qd=None) -> dict:
+def motion_terms(w: sp.Matrix, q, u, t, qd=None, rates=None) -> dict:
     """The rows of velocity constraints w = A(q, t) u + b(q, t) = 0 in the layout of
     `holonomic_terms`: no position-level phi (0), A = dw/du, b in the place of dphi/dt, and
     gamma = -(w_q qd + w_t) - 2 alpha w (Baumgarte's velocity term; no position term), with
-    qd = K(q, u, t) the kinematic equations (``qd``, default u)."""
+    qd = K(q, u, t) the kinematic equations (``qd``, default u). ``rates``, when given, is
+    w_q qd + w_t already formed (Kane's ``f_dnh``: sympy differentiated its constraints itself)."""
     q_vec, u_vec = sp.Matrix(q), sp.Matrix(u)
-    rates = u_vec if qd is None else sp.Matrix(qd)
     A = w.jacobian(u_vec)
     b = w.xreplace(dict.fromkeys(u, 0))
-    gamma = -(w.jacobian(q_vec) * rates + w.diff(t)) - 2 * BAUMGARTE_ALPHA * w
+    if rates is None:
+        rates = w.jacobian(q_vec) * (u_vec if qd is None else sp.Matrix(qd)) + w.diff(t)
+    gamma = -rates - 2 * BAUMGARTE_ALPHA * w
     return {"A": sp.ImmutableMatrix(A), "phi_t": sp.ImmutableMatrix(b), "w": sp.ImmutableMatrix(w),
             "gamma": sp.ImmutableMatrix(gamma), "phi": sp.ImmutableMatrix.zeros(w.rows, 1)}

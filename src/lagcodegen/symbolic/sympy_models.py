@@ -32,7 +32,7 @@ def derive_from_sympy(model: Model):
         speeds = tuple(c.diff(TIME) for c in coords)
         kin_dynamic = sp.Matrix(speeds)
         route = "sympy LagrangesMethod"
-        n_dependent, auxiliary_equations, dependent_coordinates = 0, None, ()
+        n_dependent, auxiliary_equations, dependent_coordinates, motion_rates = 0, None, (), None
     else:
         speeds = tuple(method.u)
         kindiff = method.kindiffdict()
@@ -43,8 +43,11 @@ def derive_from_sympy(model: Model):
         dependent_coordinates = tuple(method._qdep)  # private: sympy 1.14 keeps them only there
         configuration = sp.Matrix(method._f_h) if dependent_coordinates else None
         n_dependent = len(method._udep)  # private: sympy 1.14 keeps the split of the speeds only there
+        motion_rates = None
         if n_dependent:
             motion = list(method._k_nh * sp.Matrix(method.u) + method._f_nh)
+            if method._k_dnh == method._k_nh:  # sympy's acceleration constraints A ud + f_dnh = 0: its own d/dt
+                motion_rates = method._f_dnh
             method = _every_speed_independent(method, kindiff)
     q, u = plain_symbols(coords, speeds, model.parameters)
     renamed = make_substitution(coords, speeds, q, u, "sympy model", inputs=model.inputs)
@@ -66,7 +69,8 @@ def derive_from_sympy(model: Model):
     constraints = held if isinstance(method, me.LagrangesMethod) else ()
     if not motion:
         check_mass_matrix(M, coords, u, speeds)
-    eom = assemble(model, coords, speeds, q, u, M, F, K, T, V, to_plain, constraints=constraints, motion=motion)
+    eom = assemble(model, coords, speeds, q, u, M, F, K, T, V, to_plain, constraints=constraints, motion=motion,
+                   motion_rates=motion_rates)
     if motion:
         eom = _massless_speeds_regularized(eom)
         check_mass_matrix(eom.mass_matrix, coords, u, speeds)
