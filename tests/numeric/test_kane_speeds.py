@@ -366,11 +366,9 @@ def test_a_disc_rolling_upright_and_straight_is_held_up_by_its_weight(disc_with_
     assert abs(abs(Fz) - values["m"] * values["g"]) < 1e-12
 
 
-def test_the_unit_norm_as_a_configuration_constraint_is_kept_by_projection():
-    """Euler parameters with q0 dependent on Kane's configuration constraint |q|^2 = 1: project=True
-    solves it for q0 after every step (Newton), so the norm stays at 1 to the projection's tolerance
-    over 100 s of RK4 at h = 0.02, where without projection it drifts with the integrator's error;
-    the energy (1/2 sum I_i w_i^2, by hand) is not touched by the projection."""
+def _quaternion_body_with_q0_dependent():
+    """The torque-free body of `_quaternion_body` with q0 dependent on Kane's configuration
+    constraint |q|^2 = 1 (q_dependent=[q0]): (kane, N, (I1, I2, I3))."""
     q0, q1, q2, q3 = me.dynamicsymbols("q0:4")
     w1, w2, w3 = me.dynamicsymbols("w1:4")
     I1, I2, I3 = sp.symbols("I1:4")
@@ -385,6 +383,15 @@ def test_the_unit_norm_as_a_configuration_constraint_is_kept_by_projection():
     kane = me.KanesMethod(N, q_ind=[q1, q2, q3], q_dependent=[q0], kd_eqs=kd, u_ind=[w1, w2, w3],
                           configuration_constraints=[q0 ** 2 + q1 ** 2 + q2 ** 2 + q3 ** 2 - 1])
     kane.kanes_equations([body], [])
+    return kane, N, (I1, I2, I3)
+
+
+def test_the_unit_norm_as_a_configuration_constraint_is_kept_by_projection():
+    """Euler parameters with q0 dependent on Kane's configuration constraint |q|^2 = 1: project=True
+    solves it for q0 after every step (Newton), so the norm stays at 1 to the projection's tolerance
+    over 100 s of RK4 at h = 0.02, where without projection it drifts with the integrator's error;
+    the energy (1/2 sum I_i w_i^2, by hand) is not touched by the projection."""
+    kane, N, (I1, I2, I3) = _quaternion_body_with_q0_dependent()
     system = compile_model(Model("quaternion_constrained", parameters=[I1, I2, I3], sympy_model=kane, frame=N),
                            methods=["rk4"])
     assert system.layout.coordinates == ("q1", "q2", "q3", "q0")
@@ -400,20 +407,7 @@ def test_the_unit_norm_as_a_configuration_constraint_is_kept_by_projection():
 
 
 def test_a_start_off_the_configuration_constraints_is_named_with_the_value_that_fits():
-    q0, q1, q2, q3 = me.dynamicsymbols("q0:4")
-    w1, w2, w3 = me.dynamicsymbols("w1:4")
-    I1, I2, I3 = sp.symbols("I1:4")
-    N = me.ReferenceFrame("N")
-    B = N.orientnew("B", "Quaternion", [q0, q1, q2, q3])
-    B.set_ang_vel(N, w1 * B.x + w2 * B.y + w3 * B.z)
-    O = me.Point("O")
-    O.set_vel(N, 0)
-    body = me.RigidBody("body", O, B, 1, (me.inertia(B, I1, I2, I3), O))
-    rates = sp.Matrix([[-q1, -q2, -q3], [q0, -q3, q2], [q3, q0, -q1], [-q2, q1, q0]]) * sp.Matrix([w1, w2, w3]) / 2
-    kd = [c.diff(me.dynamicsymbols._t) - rate for c, rate in zip((q0, q1, q2, q3), rates)]
-    kane = me.KanesMethod(N, q_ind=[q1, q2, q3], q_dependent=[q0], kd_eqs=kd, u_ind=[w1, w2, w3],
-                          configuration_constraints=[q0 ** 2 + q1 ** 2 + q2 ** 2 + q3 ** 2 - 1])
-    kane.kanes_equations([body], [])
+    kane, N, (I1, I2, I3) = _quaternion_body_with_q0_dependent()
     system = compile_model(Model("quaternion_off", parameters=[I1, I2, I3], sympy_model=kane, frame=N),
                            methods=["rk4"])
     # q1 = 0.6: q0 = 0.8 fits (0.6^2 + 0.8^2 = 1, by hand); 0.9 does not

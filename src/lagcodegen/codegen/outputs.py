@@ -345,10 +345,7 @@ def _dependent_speeds_c(w: KernelWriter, kernel) -> dict:
     """u_dep from A_D u_dep = -(A_I u + b), by LU with partial pivoting (`_dense_solve_function`)."""
     m, real, prefix = w.n_dependent, w.real, w.prefix
     names = ", ".join(s.name for s in w.system.u_dependent)
-    body = w.head(kernel) + [f"{real} AD[{m * m}], b[{m}];", "int i;",
-                             "/* A_D (the constraint Jacobian in the dependent speeds) and -(A_I u + b) */"]
-    body += [f"AD[{i * m + j}] = {w.expr(e, f'A_D[{i}][{j}]')};" for (i, j), e in results(kernel, "AD").items()]
-    body += [f"b[{i}] = -({w.expr(e, f'row {i}')});" for (i, _), e in results(kernel, "BI").items()]
+    body = w.head(kernel) + _dependent_system_lines(w, kernel, "BI")
     body += [f"if ({prefix}_dense_solve(AD, b, {m}, 1)) {{",
              f"    for (i = 0; i < {m}; ++i) u_dep[i] = b[i];",
              f"    return {prefix}_finite_result(LCG_OK, u_dep, {m});",
@@ -361,11 +358,18 @@ def _dependent_speeds_c(w: KernelWriter, kernel) -> dict:
                   "them is singular).", body)
 
 
+def _dependent_system_lines(w: KernelWriter, kernel, rest: str) -> list:
+    """AD (the constraint Jacobian in the dependent speeds, m x m) and b = -(the ``rest`` rows): the
+    system A_D v = b that the dependent speeds and their accelerations both solve."""
+    m = w.n_dependent
+    lines = [f"{w.real} AD[{m * m}], b[{m}];", "int i;", "/* A_D and the right-hand side */"]
+    lines += [f"AD[{i * m + j}] = {w.expr(e, f'A_D[{i}][{j}]')};" for (i, j), e in results(kernel, "AD").items()]
+    return lines + [f"b[{i}] = -({w.expr(e, f'row {i}')});" for (i, _), e in results(kernel, rest).items()]
+
+
 def _dependent_accelerations_c(w: KernelWriter, kernel) -> dict:
     m, p, real, prefix = w.n_dependent, w.n_u, w.real, w.prefix
-    body = w.head(kernel, on_singular="return dep_status;") + [f"{real} AD[{m * m}], b[{m}];", "int i;"]
-    body += [f"AD[{i * m + j}] = {w.expr(e, f'A_D[{i}][{j}]')};" for (i, j), e in results(kernel, "AD").items()]
-    body += [f"b[{i}] = -({w.expr(e, f'row {i}')});" for (i, _), e in results(kernel, "GB").items()]
+    body = w.head(kernel, on_singular="return dep_status;") + _dependent_system_lines(w, kernel, "GB")
     body += [f"if (!{prefix}_dense_solve(AD, b, {m}, 1)) return LCG_SINGULAR_CONSTRAINTS;",
              f"for (i = 0; i < {m}; ++i) ud[{p} + i] = b[i];",
              f"return {prefix}_finite_result(LCG_OK, ud, {p + m});"]
