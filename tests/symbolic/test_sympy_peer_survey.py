@@ -117,7 +117,8 @@ def test_lagranges_method_constraints_by_kind():
 def test_the_whipple_bicycle_of_test_kane3_matches(tmp_path):
     """The field's benchmark as sympy's test_kane3 builds it (Kane, CRAMER solver, 4 coordinates,
     3 independent and 3 dependent speeds, the pitch dependent): sympy's rhs to 1e-10 at random
-    consistent states, and 1 s of RK4 follows DOP853 on sympy's rhs from a consistent start."""
+    consistent states, 1 s of RK4 follows DOP853 on sympy's rhs from a consistent start, and the
+    weave, capsize and castor eigenvalues at 5 m/s are the benchmark's to 1e-8."""
     spec = importlib.util.spec_from_file_location("sympy_peer_survey", TOOL)
     survey = importlib.util.module_from_spec(spec)
     sys.modules[spec.name] = survey
@@ -126,3 +127,29 @@ def test_the_whipple_bicycle_of_test_kane3_matches(tmp_path):
     row = survey.check(survey.Recorded("test_kane3.test_bicycle", bicycle, "KanesMethod"), 0, tmp_path)
     assert row["status"] == "matches", row
     assert row["eliminated"] == 3 and row["max_error"] < 1e-10 and row["trajectory_error"] < 1e-8
+    # and its linearization at upright running, 5 m/s, against the benchmark's published matrix
+    # (``Res`` in test_kane3, the parameter values converted as that test converts them)
+    import numpy as np
+    from scipy.optimize import brentq
+
+    from lagcodegen.statics.state_space import linearize_state
+
+    spec = importlib.util.spec_from_file_location("whipple_bicycle", TOOL.parents[1] / "tests" / "constraints"
+                                                  / "test_whipple_bicycle.py")
+    whipple = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(whipple)
+    t = me.dynamicsymbols._t
+    constants = sorted((bicycle.mass_matrix_full.free_symbols | bicycle.forcing_full.free_symbols) - {t}, key=str)
+    values = {c: whipple.benchmark_values()[c.name] for c in constants}
+    eom = derive_equations(Model("kane_bicycle", parameters=constants, sympy_model=bicycle, parameter_values=values))
+    assert (eom.n_q, eom.n_u, eom.n_dependent) == (4, 6, 3)
+    q, dependent = list(bicycle.q), list(bicycle._qdep)
+    pitch = brentq(sp.lambdify(dependent, bicycle._f_h[0].xreplace(values | {c: 0 for c in q if c not in dependent})),
+                   -1.0, 1.0)  # upright: the pitch that keeps the front wheel on the ground
+    state = {s.name: 0.0 for s in eom.q + eom.u} | {"q4": pitch, "u3": 5.0 / values[sp.Symbol("WRrad")]}
+    A = np.array(eom.constraint_jacobian.xreplace({s: state[s.name] for s in eom.q} | values).evalf(), dtype=float)
+    speeds = np.array([state[s.name] for s in eom.u])
+    speeds[3:] = np.linalg.solve(A[:, 3:], -A[:, :3] @ speeds[:3])  # the dependent speeds u1, u4, u6
+    ours = linearize_state(eom, [state[s.name] for s in eom.q] + list(speeds), values={}).eigenvalues()
+    for value in np.linalg.eigvals(whipple.benchmark_matrix(5.0)):
+        assert np.abs(ours - value).min() < 1e-8 * max(1.0, abs(value)), (value, ours)

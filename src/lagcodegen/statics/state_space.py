@@ -141,12 +141,12 @@ def linearize_state(eom: EquationsOfMotion, x0: Any, r0: Any = None, values: Map
     M, F, K = (sp.Matrix(X) for X in (eom.mass_matrix, eom.forcing, eom.kinematics))
     r = list(eom.inputs)
     parts = {"M": M, "F": F, "K": K, "dK/dx": K.jacobian(states),
-             "dK/dr": K.jacobian(r) if r else sp.zeros(eom.n, 0)}
+             "dK/dr": K.jacobian(r) if r else sp.zeros(eom.n_q, 0)}
     if not eom.m:  # a constrained model differentiates its whole Lagrange I solve instead (`_constrained`)
         parts |= {"dF/dq": F.jacobian(eom.q), "dF/du": F.jacobian(eom.u),
-                  "dF/dr": F.jacobian(r) if r else sp.zeros(eom.n, 0)}
+                  "dF/dr": F.jacobian(r) if r else sp.zeros(eom.n_u, 0)}
     Y = sp.Matrix([y for _, y in eom.measurements]) if eom.measurements else sp.zeros(0, 1)
-    parts["dh/dx"] = Y.jacobian(states) if eom.measurements else sp.zeros(0, 2 * eom.n)
+    parts["dh/dx"] = Y.jacobian(states) if eom.measurements else sp.zeros(0, eom.n_state)
     parts["dh/dr"] = Y.jacobian(r) if eom.measurements and r else sp.zeros(len(eom.measurements), len(r))
     names = tuple(name for name, _ in eom.measurements)
     dM = [] if eom.m else [M.diff(qc) for qc in eom.q]
@@ -159,7 +159,7 @@ def linearize_state(eom: EquationsOfMotion, x0: Any, r0: Any = None, values: Map
         ud0 = solve(here["F"])
         A_lower = solve(here["dF/dq"] - sp.Matrix.hstack(*[X * ud0 for X in dM_here])).row_join(solve(here["dF/du"]))
         A = here["dK/dx"].col_join(A_lower)
-        B = here["dK/dr"].col_join(solve(here["dF/dr"])) if r else sp.zeros(2 * eom.n, 0)
+        B = here["dK/dr"].col_join(solve(here["dF/dr"])) if r else sp.zeros(eom.n_state, 0)
         return StateSpace(states, tuple(r), point, held, t0, sp.ImmutableMatrix(sp.simplify(A)),
                           sp.ImmutableMatrix(sp.simplify(B)), sp.ImmutableMatrix(sp.simplify(here["dh/dx"])),
                           sp.ImmutableMatrix(sp.simplify(here["dh/dr"])), names)
@@ -170,19 +170,19 @@ def linearize_state(eom: EquationsOfMotion, x0: Any, r0: Any = None, values: Map
         return _constrained(eom, states, point, held, at, vals, number, parts, t0)
     here = {name: number(matrix, name) for name, matrix in parts.items()}
     M_here = here["M"]
-    if not np.all(np.isfinite(M_here)) or np.linalg.matrix_rank(M_here) < eom.n:
+    if not np.all(np.isfinite(M_here)) or np.linalg.matrix_rank(M_here) < eom.n_u:
         raise ValueError(f"the mass matrix of model {eom.name!r} is singular or not finite at x0 = {list(point)} "
                          f"with these parameter values: M = {M_here.tolist()}; no linearization")
     ud0 = np.linalg.solve(M_here, here["F"].ravel())
-    dM_ud = np.column_stack([number(X, f"dM/d{qc}") @ ud0 for X, qc in zip(dM, eom.q)]) if eom.n else \
+    dM_ud = np.column_stack([number(X, f"dM/d{qc}") @ ud0 for X, qc in zip(dM, eom.q)]) if eom.n_q else \
         np.zeros((0, 0))
     A = np.vstack([here["dK/dx"], np.hstack([np.linalg.solve(M_here, here["dF/dq"] - dM_ud),
                                               np.linalg.solve(M_here, here["dF/du"])])])
-    B = np.vstack([here["dK/dr"], np.linalg.solve(M_here, here["dF/dr"])]) if r else np.zeros((2 * eom.n, 0))
+    B = np.vstack([here["dK/dr"], np.linalg.solve(M_here, here["dF/dr"])]) if r else np.zeros((eom.n_state, 0))
     numbers = {p: sp.Float(v) for p, v in vals.items()}
     as_float = lambda v: float(sp.sympify(v).xreplace(numbers))  # noqa: E731
     return StateSpace(states, tuple(r), tuple(map(as_float, point)), tuple(map(as_float, held)),
-                      as_float(t0), A, B, here["dh/dx"].reshape(len(names), 2 * eom.n),
+                      as_float(t0), A, B, here["dh/dx"].reshape(len(names), eom.n_state),
                       here["dh/dr"].reshape(len(names), len(r)), names)
 
 
@@ -192,7 +192,7 @@ def _constrained(eom, states, point, held, at, vals, number, parts, t0) -> State
     same in the directions the constraints allow (module docstring of `StateSpace`)."""
     from scipy.linalg import null_space
 
-    n, m, r = eom.n, eom.m, list(eom.inputs)
+    n, m, r = eom.n_u, eom.m, list(eom.inputs)  # n: speeds, the size of M
     M, A = sp.Matrix(eom.mass_matrix), sp.Matrix(eom.constraint_jacobian)
     K = sp.Matrix(sp.BlockMatrix([[M, A.T], [A, sp.zeros(m, m)]]))
     rhs = sp.Matrix.vstack(sp.Matrix(eom.forcing), sp.Matrix(eom.constraint_bias))
@@ -226,8 +226,9 @@ def _constrained(eom, states, point, held, at, vals, number, parts, t0) -> State
             drhs = partial(rhs, v, f"d(F, gamma)/d{v}") if v in in_rhs else np.zeros((n + m, 1))
         columns.append(np.linalg.solve(K_here, drhs.ravel() - dK @ z)[:n])
     lower = np.column_stack(columns) if columns else np.zeros((n, 0))
-    A_full = np.vstack([number(parts["dK/dx"], "dK/dx"), lower[:, :2 * n]])
-    B_full = np.vstack([number(parts["dK/dr"], "dK/dr") if r else np.zeros((n, 0)), lower[:, 2 * n:]])
+    size = eom.n_state
+    A_full = np.vstack([number(parts["dK/dx"], "dK/dx"), lower[:, :size]])
+    B_full = np.vstack([number(parts["dK/dr"], "dK/dr") if r else np.zeros((eom.n_q, 0)), lower[:, size:]])
     held_rows = eom.n_holonomic
     c = sp.Matrix.vstack(sp.Matrix(eom.constraints)[:held_rows, :],
                          A * sp.Matrix(eom.u) + sp.Matrix(eom.constraint_rate))
@@ -240,7 +241,7 @@ def _constrained(eom, states, point, held, at, vals, number, parts, t0) -> State
     names = tuple(name for name, _ in eom.measurements)
     numbers = {p: sp.Float(v) for p, v in vals.items()}
     as_float = lambda v: float(sp.sympify(v).xreplace(numbers))  # noqa: E731
-    C = number(parts["dh/dx"], "dh/dx").reshape(len(names), 2 * n)
+    C = number(parts["dh/dx"], "dh/dx").reshape(len(names), size)
     D = number(parts["dh/dr"], "dh/dr").reshape(len(names), len(r))
     return StateSpace(states, tuple(r), tuple(map(as_float, point)), tuple(map(as_float, held)), as_float(t0),
                       A_full, B_full, C, D, names, basis=basis, A_reduced=basis.T @ A_full @ basis,
