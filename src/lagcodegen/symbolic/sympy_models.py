@@ -5,11 +5,12 @@ dynamicsymbols to plain symbols and takes the kinematic equations from Kane's
 ``kindiffdict`` (qd = K(q, u, t)), so Kane's generalized speeds pass through unchanged, in any
 number (a quaternion's four rates from three body rates).
 
-Kane's dependent speeds: the unreduced equations of every speed with the velocity constraints
-A u + b = 0 as multipliers (`_every_speed_independent`). Dependent coordinates are integrated with
-the others; their configuration constraints act through the velocity constraints, as in sympy's
-own ``rhs``. Auxiliary speeds stay out of the state, as sympy leaves them out of ``rhs``: they
-serve its ``auxiliary_eqs`` for reaction forces, which the multipliers give here.
+Kane's dependent speeds: the unreduced equations of every speed (`_every_speed_independent`) and
+the velocity constraints A u + b = 0, eliminated in C at every evaluation (the default,
+``n_dependent``) or kept with multipliers (Model.formulation). Dependent coordinates are integrated
+with the others and projected onto the configuration constraints when asked (``configuration``).
+Auxiliary speeds are zero and stay out of the state, as in sympy's ``rhs``; the unknown forces of
+its ``auxiliary_eqs`` become the ``reactions``.
 """
 from __future__ import annotations
 
@@ -32,7 +33,7 @@ def derive_from_sympy(model: Model):
         speeds = tuple(c.diff(TIME) for c in coords)
         kin_dynamic = sp.Matrix(speeds)
         route = "sympy LagrangesMethod"
-        n_dependent, auxiliary_equations, dependent_coordinates, motion_rates = 0, None, (), None
+        n_dependent, auxiliary_equations, dependent_coordinates, motion_rates, configuration = 0, None, (), None, None
     else:
         speeds = tuple(method.u)
         kindiff = method.kindiffdict()
