@@ -28,8 +28,9 @@ INERTIA = {"I1": 1.0, "I2": 2.0, "I3": 3.0}
 X0 = [1.0, 0.0, 0.0, 0.0, 0.3, 1.0, 0.2]  # near the unstable middle axis: a tumbling motion
 
 
-def _quaternion_body():
-    """Kane: Euler parameters q0..q3 of B in N, body rates w1..w3 as the speeds."""
+def _quaternion_body(q0_dependent: bool = False):
+    """Kane: Euler parameters q0..q3 of B in N, body rates w1..w3 as the speeds; ``q0_dependent``:
+    q0 dependent on Kane's configuration constraint |q|^2 = 1 (q_dependent=[q0])."""
     q0, q1, q2, q3 = me.dynamicsymbols("q0:4")
     w1, w2, w3 = me.dynamicsymbols("w1:4")
     I1, I2, I3 = sp.symbols("I1:4")
@@ -41,7 +42,11 @@ def _quaternion_body():
     body = me.RigidBody("body", O, B, 1, (me.inertia(B, I1, I2, I3), O))
     rates = sp.Matrix([[-q1, -q2, -q3], [q0, -q3, q2], [q3, q0, -q1], [-q2, q1, q0]]) * sp.Matrix([w1, w2, w3]) / 2
     kd = [c.diff(me.dynamicsymbols._t) - rate for c, rate in zip((q0, q1, q2, q3), rates)]
-    kane = me.KanesMethod(N, q_ind=[q0, q1, q2, q3], u_ind=[w1, w2, w3], kd_eqs=kd)
+    if q0_dependent:
+        kane = me.KanesMethod(N, q_ind=[q1, q2, q3], q_dependent=[q0], kd_eqs=kd, u_ind=[w1, w2, w3],
+                              configuration_constraints=[q0 ** 2 + q1 ** 2 + q2 ** 2 + q3 ** 2 - 1])
+    else:
+        kane = me.KanesMethod(N, q_ind=[q0, q1, q2, q3], u_ind=[w1, w2, w3], kd_eqs=kd)
     kane.kanes_equations([body], [])
     momentum = body.angular_momentum(O, N)
     H = sp.lambdify([q0, q1, q2, q3, w1, w2, w3, I1, I2, I3],
@@ -366,32 +371,12 @@ def test_a_disc_rolling_upright_and_straight_is_held_up_by_its_weight(disc_with_
     assert abs(abs(Fz) - values["m"] * values["g"]) < 1e-12
 
 
-def _quaternion_body_with_q0_dependent():
-    """The torque-free body of `_quaternion_body` with q0 dependent on Kane's configuration
-    constraint |q|^2 = 1 (q_dependent=[q0]): (kane, N, (I1, I2, I3))."""
-    q0, q1, q2, q3 = me.dynamicsymbols("q0:4")
-    w1, w2, w3 = me.dynamicsymbols("w1:4")
-    I1, I2, I3 = sp.symbols("I1:4")
-    N = me.ReferenceFrame("N")
-    B = N.orientnew("B", "Quaternion", [q0, q1, q2, q3])
-    B.set_ang_vel(N, w1 * B.x + w2 * B.y + w3 * B.z)
-    O = me.Point("O")
-    O.set_vel(N, 0)
-    body = me.RigidBody("body", O, B, 1, (me.inertia(B, I1, I2, I3), O))
-    rates = sp.Matrix([[-q1, -q2, -q3], [q0, -q3, q2], [q3, q0, -q1], [-q2, q1, q0]]) * sp.Matrix([w1, w2, w3]) / 2
-    kd = [c.diff(me.dynamicsymbols._t) - rate for c, rate in zip((q0, q1, q2, q3), rates)]
-    kane = me.KanesMethod(N, q_ind=[q1, q2, q3], q_dependent=[q0], kd_eqs=kd, u_ind=[w1, w2, w3],
-                          configuration_constraints=[q0 ** 2 + q1 ** 2 + q2 ** 2 + q3 ** 2 - 1])
-    kane.kanes_equations([body], [])
-    return kane, N, (I1, I2, I3)
-
-
 def test_the_unit_norm_as_a_configuration_constraint_is_kept_by_projection():
     """Euler parameters with q0 dependent on Kane's configuration constraint |q|^2 = 1: project=True
     solves it for q0 after every step (Newton), so the norm stays at 1 to the projection's tolerance
     over 100 s of RK4 at h = 0.02, where without projection it drifts with the integrator's error;
     the energy (1/2 sum I_i w_i^2, by hand) is not touched by the projection."""
-    kane, N, (I1, I2, I3) = _quaternion_body_with_q0_dependent()
+    kane, N, (I1, I2, I3), _ = _quaternion_body(q0_dependent=True)
     system = compile_model(Model("quaternion_constrained", parameters=[I1, I2, I3], sympy_model=kane, frame=N),
                            methods=["rk4"])
     assert system.layout.coordinates == ("q1", "q2", "q3", "q0")
@@ -407,7 +392,7 @@ def test_the_unit_norm_as_a_configuration_constraint_is_kept_by_projection():
 
 
 def test_a_start_off_the_configuration_constraints_is_named_with_the_value_that_fits():
-    kane, N, (I1, I2, I3) = _quaternion_body_with_q0_dependent()
+    kane, N, (I1, I2, I3), _ = _quaternion_body(q0_dependent=True)
     system = compile_model(Model("quaternion_off", parameters=[I1, I2, I3], sympy_model=kane, frame=N),
                            methods=["rk4"])
     # q1 = 0.6: q0 = 0.8 fits (0.6^2 + 0.8^2 = 1, by hand); 0.9 does not
