@@ -10,10 +10,11 @@ from importlib.metadata import version as _version
 
 from .model import Model, ModelError
 from .symbolic.derive import EquationsOfMotion, derive_equations
+from .tree import Link
 
 try:
     __version__ = _version("lagcodegen")
 except PackageNotFoundError:  # running from a source tree
     __version__ = "0.1.0"
 
-__all__ = ["Model", "ModelError", "EquationsOfMotion", "derive_equations", "__version__"]
+__all__ = ["Model", "ModelError", "Link", "EquationsOfMotion", "derive_equations", "__version__"]

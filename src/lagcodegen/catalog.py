@@ -2,7 +2,8 @@
 
 Each builder returns a `Model`; ``route="energies"`` states it by T, V, Q (Lagrange II) and
 ``route="bodies"`` by particles, rigid bodies and loads (d'Alembert-Lagrange) where the geometry
-is natural. Weights (P, Q) are forces, as in the problem books: masses are P/g.
+is natural; ``route="tree"`` states a kinematic tree link by link (`tree.Link`), which big
+models compile recursively. Weights (P, Q) are forces, as in the problem books: masses are P/g.
 """
 from __future__ import annotations
 
@@ -12,12 +13,13 @@ import sympy as sp
 import sympy.physics.mechanics as me
 
 from .model import TIME, Model
+from .tree import Link
 
 ROUTES = ("energies", "bodies")
 
 
-def _check_route(route: str) -> None:
-    if route not in ROUTES:
+def _check_route(route: str, routes=ROUTES) -> None:
+    if route not in routes:
         raise ValueError(f"route must be one of {ROUTES}, got {route!r}")
 
 
@@ -185,8 +187,9 @@ def gear_hoist(route: str = "energies") -> Model:
 
 def pendulum_chain(n: int = 3, route: str = "bodies", name: str | None = None) -> Model:
     """Planar chain of n point masses m_i on massless rods l_i, hinged at the origin under gravity
-    g; q_i is link i's absolute angle from the downward vertical."""
-    _check_route(route)
+    g; q_i is link i's absolute angle from the downward vertical. ``route="tree"`` states the
+    same chain as revolute joints about z whose angles are q_i - q_(i-1)."""
+    _check_route(route, ROUTES + ("tree",))
     if not isinstance(n, int) or n < 1:
         raise ValueError(f"a pendulum chain needs n >= 1 links, got {n!r}")
     q = me.dynamicsymbols(f"q1:{n + 1}")
@@ -196,6 +199,11 @@ def pendulum_chain(n: int = 3, route: str = "bodies", name: str | None = None) -
     params = tuple(m) + tuple(l) + (g,)
     values = {**{mi: 1.0 for mi in m}, **{li: 1.0 for li in l}, g: 9.81}
     name = name or f"pendulum_chain_{n}"
+    if route == "tree":
+        links = [Link(f"link{i + 1}", None if i == 0 else f"link{i}", "revolute", (0, 0, 1),
+                      q[i] - (q[i - 1] if i else 0), offset=(0, -l[i - 1] if i else 0, 0), mass=m[i],
+                      center=(0, -l[i], 0), points={f"bob{i + 1}": (0, -l[i], 0)}) for i in range(n)]
+        return Model(name, q, params, tree=links, gravity=(0, -g, 0), parameter_values=values)
     if route == "energies":
         x, y, positions = sp.S.Zero, sp.S.Zero, []
         for qi, li in zip(q, l):

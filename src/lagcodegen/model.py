@@ -6,7 +6,9 @@ A model is stated in one of three ways, all consumed by `derive.derive_equations
   generalized forces Q and a Rayleigh dissipation function R (Lagrange II);
 * points and bodies: sympy.physics.mechanics Particles and RigidBodies whose positions are
   functions of q and t, with loads and gravity (d'Alembert-Lagrange, generalized inertia forces);
-* an existing sympy model: a ``LagrangesMethod``, ``KanesMethod`` or ``System``.
+* an existing sympy model: a ``LagrangesMethod``, ``KanesMethod`` or ``System``;
+* a kinematic tree stated link by link (`tree.Link`: joints, masses, points), for which the
+  equations are formed in closed form or by a recursive algorithm (`symbolic.tree`).
 
 `Model` validates its input and computes nothing else.
 """
@@ -22,14 +24,17 @@ import sympy.physics.mechanics as me
 from sympy.core.function import AppliedUndef
 
 from .symbolic.grouping import components
+from .tree import TreeError, checked_tree
 
 TIME = me.dynamicsymbols._t
 
 ROUTE_ENERGIES = "energies"
 ROUTE_BODIES = "bodies"
 ROUTE_SYMPY = "sympy"
+ROUTE_TREE = "tree"
 #: how velocity constraints with dependent speeds enter (Model.formulation; None: elimination when possible)
-FORMULATIONS = (None, "elimination", "multipliers")
+#: ... and for a kinematic tree (Model.tree; None: the cost model of `symbolic.tree` chooses)
+FORMULATIONS = (None, "elimination", "multipliers", "closed", "recursive")
 
 
 class ModelError(ValueError):
@@ -155,6 +160,7 @@ class Model:
     bodies: Sequence[Any] = ()
     loads: Sequence[Any] = ()
     gravity: Any = None
+    tree: Sequence[Any] = ()
     frame: Any = None
     origin: Any = None
     points: Mapping[str, Any] = field(default_factory=dict)
@@ -179,6 +185,7 @@ class Model:
             set_("coordinates", tuple(_sympy_model_coordinates(self.sympy_model)))
         set_("coordinates", tuple(self.coordinates))
         self._check_coordinates()
+        set_("tree", self._checked_tree())
         set_("inputs", tuple(self.inputs))
         self._check_inputs()
         set_("potential_energy", _as_expr(self.potential_energy, "potential_energy"))
@@ -204,6 +211,8 @@ class Model:
 
     @property
     def route(self) -> str:
+        if self.tree:
+            return ROUTE_TREE
         if self.sympy_model is not None:
             return ROUTE_SYMPY
         if self.bodies:
@@ -282,7 +291,38 @@ class Model:
             values[p] = finite_number(value, f"parameter_values[{p.name!r}]")
         return values
 
+    def _checked_tree(self) -> tuple:
+        if not self.tree:
+            return ()
+        try:
+            tree = checked_tree(self.tree, self.coordinates)
+        except TreeError as error:
+            raise ModelError(f"model {self.name!r}: {error}") from None
+        given = [name for name in ("kinetic_energy", "bodies", "loads", "sympy_model", "constraints",
+                                   "motion_constraints", "frame", "origin", "points")
+                 if getattr(self, name) not in (None, (), [], {})]
+        if given:
+            raise ModelError(f"model {self.name!r}: a tree brings its bodies, frames and points; drop "
+                             f"{', '.join(given)} (springs and drives go in potential_energy, "
+                             "generalized_forces and dissipation)")
+        if self.gravity is not None and not (isinstance(self.gravity, (list, tuple)) and len(self.gravity) == 3):
+            raise ModelError(f"model {self.name!r}: a tree's gravity is 3 components in the ground frame, "
+                             f"got {self.gravity!r}")
+        return tree
+
+    def tree_points(self) -> tuple:
+        """Names of the points of a tree's links, in link order."""
+        return tuple(name for link in self.tree for name in link.points)
+
     def _check_route(self) -> None:
+        if self.tree:
+            if self.formulation in ("elimination", "multipliers"):
+                raise ModelError(f"model {self.name!r}: formulation {self.formulation!r} is for velocity "
+                                 "constraints; a tree takes 'closed', 'recursive' or None")
+            return
+        if self.formulation in ("closed", "recursive"):
+            raise ModelError(f"model {self.name!r}: formulation {self.formulation!r} is for a kinematic tree "
+                             "(Model(tree=[Link(...), ...])); this model states no tree")
         if self.sympy_model is not None:
             if self.kinetic_energy is not None or self.bodies:
                 raise ModelError("give either sympy_model or kinetic_energy/bodies, not both")
@@ -332,6 +372,11 @@ class Model:
                  ("dissipation", self.dissipation)]
         exprs += [(f"generalized force on {q}", Q) for q, Q in self.generalized_forces.items()]
         exprs += [(f"measurement {name!r}", y) for name, y in self.measurements.items()]
+        for link in self.tree:  # the joint variable was checked with the tree
+            exprs += [(f"{what} of link {link.name!r}", e) for what, values in (
+                ("mass", (link.mass,)), ("offset", link.offset), ("centre of mass", link.center),
+                ("inertia", link.inertia)) for e in values]
+            exprs += [(f"point {name!r} of link {link.name!r}", e) for name, xyz in link.points.items() for e in xyz]
         for body in self.bodies:
             exprs.append((f"mass of {body.name}", _as_expr(body.mass, f"mass of {body.name}")))
             if isinstance(body, me.RigidBody):
@@ -347,7 +392,9 @@ class Model:
                     raise ModelError(f"point {name!r} must be a Point or 2 or 3 expressions, got {pos!r}")
                 for i, c in enumerate(pos):
                     exprs.append((f"point {name!r} component {i}", _as_expr(c, f"point {name!r}")))
-        if self.gravity is not None:
+        if self.gravity is not None and self.tree:
+            exprs += [(f"gravity component {i}", _as_expr(g, "gravity")) for i, g in enumerate(self.gravity)]
+        elif self.gravity is not None:
             if not isinstance(self.gravity, me.Vector):
                 raise ModelError(f"gravity must be a sympy.physics.vector Vector (e.g. -g*N.y), got {self.gravity!r}")
             exprs.append(("gravity", components(self.gravity, self.frame)))
@@ -401,7 +448,7 @@ class Model:
         """Pairs of distinct point names (or ``"origin"``), as a tuple of 2-tuples."""
         if not isinstance(self.links, (list, tuple)):
             raise ModelError(f"links must be a list or tuple of (name, name) pairs, got {type(self.links).__name__}")
-        known = (*self.points, "origin")
+        known = (*self.points, *self.tree_points(), "origin")
         checked = []
         for link in self.links:
             if not (isinstance(link, (list, tuple)) and len(link) == 2 and all(isinstance(n, str) for n in link)):

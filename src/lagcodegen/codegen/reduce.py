@@ -58,6 +58,8 @@ class ReducedSystem:
     ``inputs`` are the symbols of the inputs r (``r[i]`` in C), in the model's order;
     ``measurements`` the names of the model's output expressions y = h(q, u, r, t).
     ``ops_saved_by_fixing`` counts operations removed, before CSE, by folding fixed parameters.
+    ``recursive``: a tree's kernels are its recursive algorithm's assignments (`symbolic.trees`),
+    whose own names stand in for CSE temporaries; ``formulation`` says how and why.
     """
 
     name: str
@@ -80,6 +82,8 @@ class ReducedSystem:
     u_dependent: tuple = ()
     reactions: tuple = ()
     dependent_coordinates: tuple = ()
+    formulation: str = ""
+    recursive: bool = False
 
     def kernel(self, name: str) -> ReducedKernel:
         for k in self.kernels:
@@ -107,6 +111,10 @@ def reduce_expressions(eom: EquationsOfMotion, outputs=DEFAULT_OUTPUTS,
     blocks = _output_blocks(eom, outputs, accelerations)
     saved = 0
     kernels = []
+    for name in TREE_KERNELS if eom.tree is not None else ():
+        if name in blocks:
+            del blocks[name]
+            kernels.append(_tree_kernel(eom, name, folding))
     for name, labelled in blocks.items():
         raw = [expr for _, expr in labelled]
         folded = [expr.xreplace(folding) if folding else expr for expr in raw]
@@ -125,7 +133,8 @@ def reduce_expressions(eom: EquationsOfMotion, outputs=DEFAULT_OUTPUTS,
         point_names=tuple(name for name, _ in eom.points),
         outputs=tuple(outputs), kernels=tuple(kernels), kinematics_identity=kinematics_identity,
         ops_saved_by_fixing=int(saved), n_constraints=0 if eom.n_dependent else eom.m, inputs=tuple(eom.inputs),
-        measurements=tuple(name for name, _ in eom.measurements) if "measurements" in outputs else ())
+        measurements=tuple(name for name, _ in eom.measurements) if "measurements" in outputs else (),
+        formulation=eom.formulation, recursive=eom.tree is not None)
 
 
 def _checked_fixed(eom: EquationsOfMotion, fixed: Mapping) -> tuple:
@@ -151,13 +160,50 @@ def _checked_fixed(eom: EquationsOfMotion, fixed: Mapping) -> tuple:
 
 
 def _output_blocks(eom: EquationsOfMotion, outputs, accelerations) -> dict:
-    """kernel name -> [(label, expr)], in the order of the outputs that need them."""
+    """kernel name -> [(label, expr)], in the order of the outputs that need them (a tree's
+    recursive kernels: None, see `_tree_kernel`)."""
     blocks: dict = {}
     for name in outputs:
         kernel = OUTPUTS[name].kernel
         if kernel not in blocks:
-            blocks[kernel] = KERNEL_ROWS[kernel](eom, accelerations)
+            recursive = eom.tree is not None and kernel in TREE_KERNELS
+            blocks[kernel] = None if recursive else KERNEL_ROWS[kernel](eom, accelerations)
     return blocks
+
+
+#: kernels a tree's recursive formulation writes from its assignments (the jacobian: finite
+#: differences of the dynamics in C, so no rows)
+TREE_KERNELS = ("dynamics", "energy", "points", "jacobian")
+
+
+def _tree_kernel(eom: EquationsOfMotion, name: str, folding: dict) -> ReducedKernel:
+    """The assignments the kernel's results read (walked back from them), fixed parameters
+    folded in. The recursion named its own intermediate terms, so there is no CSE pass: its
+    operation count is that of the assignments it keeps."""
+    tree = eom.tree
+    if name == "dynamics":
+        labelled = [(("UD", j, 0), e) for j, e in enumerate(tree.accelerations)] + \
+            [(("D", j, 0), e) for j, e in enumerate(tree.pivots)]
+    elif name == "energy":
+        labelled = [(("E", 0, 0), tree.energy)]
+    elif name == "points":
+        labelled = [(("P", i, c), xyz[c]) for i, (_, xyz) in enumerate(tree.points) for c in range(3)]
+    else:
+        labelled = []
+    needed = set()
+    for _, expr in labelled:
+        needed |= expr.free_symbols
+    kept = []
+    for symbol, expr in reversed(tree.assignments):
+        if symbol in needed:
+            kept.append((symbol, expr))
+            needed |= expr.free_symbols
+    kept.reverse()
+    if folding:
+        kept = [(s, e.xreplace(folding)) for s, e in kept]
+        labelled = [(label, e.xreplace(folding)) for label, e in labelled]
+    ops = int(sum(sp.count_ops(e) for _, e in kept) + sum(sp.count_ops(e) for _, e in labelled))
+    return ReducedKernel(name=name, temporaries=tuple(kept), results=tuple(labelled), ops_before=ops, ops_after=ops)
 
 
 def _reduce(name: str, labels: list, exprs: list) -> ReducedKernel:

@@ -17,11 +17,12 @@ equations object, symbols, assembly) are in `equations`.
 """
 from __future__ import annotations
 
-from ..model import ROUTE_BODIES, ROUTE_ENERGIES, ROUTE_SYMPY, Model, ModelError
+from ..model import ROUTE_BODIES, ROUTE_ENERGIES, ROUTE_SYMPY, ROUTE_TREE, Model, ModelError
 from .bodies import derive_from_bodies
 from .energies import derive_from_energies
 from .equations import EquationsOfMotion
 from .sympy_models import derive_from_sympy
+from .trees import derive_from_tree
 
 __all__ = ["EquationsOfMotion", "derive_equations", "ROUTES"]
 
@@ -30,6 +31,7 @@ ROUTES = {
     ROUTE_ENERGIES: derive_from_energies,
     ROUTE_BODIES: derive_from_bodies,
     ROUTE_SYMPY: derive_from_sympy,
+    ROUTE_TREE: derive_from_tree,
 }
 
 

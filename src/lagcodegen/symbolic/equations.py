@@ -77,6 +77,12 @@ class EquationsOfMotion:
         Kane's configuration constraints f(q, t) = 0, solved for the ``dependent_coordinates``
         (indices into q) by the projection after a step; the dynamics reach them only through
         the velocity constraints (sympy's rhs integrates those coordinates freely).
+    tree : trees.TreeKernels or None
+        A kinematic tree in the recursive formulation: its dynamics, energy and points as
+        straight-line assignments; ``mass_matrix``, ``forcing`` and the energies are then None
+        (never formed) and the points' expressions too (``points`` keeps their names).
+    formulation : str
+        How a tree's equations were formed and why (`trees.choose_formulation`); "" otherwise.
     """
 
     name: str
@@ -107,6 +113,8 @@ class EquationsOfMotion:
     reaction_accelerations: tuple = ()
     configuration: sp.ImmutableMatrix = sp.ImmutableMatrix(0, 1, [])
     dependent_coordinates: tuple = ()
+    tree: Any = None
+    formulation: str = ""
 
     def display(self) -> tuple:
         """(M, F) as a textbook prints them (`display.display_form`); the emitted form is unchanged."""
@@ -272,7 +280,7 @@ def assemble(model, coords, speeds, q, u, M, F, K, T, V, to_plain, inputs_checke
     r = input_symbols(model.inputs)
     if not inputs_checked:
         check_declared([("mass matrix", M), ("forcing", F)], model.parameters, (), extra=q + u + r)
-    for (j, k), entry in sp.Matrix(M).todok().items():
+    for (j, k), entry in (sp.Matrix(M).todok().items() if M is not None else ()):
         held = sorted(entry.free_symbols & set(r), key=str)
         if held:
             raise ModelError(f"input {held[0]} enters the mass matrix (M[{j},{k}] = {entry}): inputs may "
@@ -325,7 +333,8 @@ def assemble(model, coords, speeds, q, u, M, F, K, T, V, to_plain, inputs_checke
     return EquationsOfMotion(
         name=model.name, route=route, t=TIME, coordinates=tuple(coords), speeds=tuple(speeds),
         q=tuple(q), u=tuple(u), parameters=parameters, parameter_values=values,
-        mass_matrix=_immutable(M), forcing=_immutable(F), kinematics=_immutable(K),
+        mass_matrix=None if M is None else _immutable(M), forcing=None if F is None else _immutable(F),
+        kinematics=_immutable(K),
         kinetic_energy=T, potential_energy=V, points=tuple(points), inputs=r,
         measurements=tuple((name, to_plain(y, f"measurement {name!r}")) for name, y in model.measurements.items()),
         **constrained)
