@@ -9,7 +9,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from ..model import TIME
-from .csyntax import EmitError
+from .csyntax import EmitError, record
 from .printer import CPrinter, mangle
 
 if TYPE_CHECKING:
@@ -18,7 +18,7 @@ if TYPE_CHECKING:
 #: local names the generated code uses itself; user symbols are renamed around them
 RESERVED = {"t", "x", "p", "out", "M", "F", "ud", "qd", "xdot", "B", "J", "c", "status", "work", "h",
             "i", "j", "k", "m", "s", "method", "stride", "n_steps", "steps_done", "A", "C", "Y", "z",
-            "lam", "Q", "phi", "phi_t", "project"}
+            "lam", "Q", "phi", "phi_t", "project", "part_values"}
 #: ... and those of the functions of a model with inputs or measurements (only then, so that the
 #: names of the other models' symbols do not change)
 DRIVEN_RESERVED = {"r", "dr", "rs", "r0", "r1", "y", "Fx", "Fr", "Jr", "hold", "inputs", "context"}
@@ -199,6 +199,53 @@ class KernelWriter:
         if names.input_index and reads_inputs and not any(s in used for s in names.input_index):
             unused.append("r")
         return lines, unused
+
+
+#: assignments per part function of a big recursive kernel: gcc's register allocation grows faster
+#: than linearly in one function's length (n = 50 chain: 5.0 s at -O3 as one function)
+PART_ASSIGNMENTS = 200
+
+
+def kernel_parts(w: KernelWriter, kernel: ReducedKernel, stem: str, driven: bool) -> tuple[list, list]:
+    """A long kernel as static part functions ``<prefix>_<stem>_part<k>`` run in order, which pass
+    the values later parts and the results read through the caller's array ``part_values``.
+    Returns (the part functions, the caller's lines up to its results); a short kernel: no parts
+    and `KernelWriter.head`'s lines."""
+    from .reduce import ReducedKernel
+
+    temporaries = kernel.temporaries
+    if len(temporaries) <= PART_ASSIGNMENTS:
+        return [], w.head(kernel, touches_state=True, reads_inputs=driven)
+    chunks = [temporaries[k:k + PART_ASSIGNMENTS] for k in range(0, len(temporaries), PART_ASSIGNMENTS)]
+    home = {symbol: k for k, chunk in enumerate(chunks) for symbol, _ in chunk}
+    read_later: set = set()
+    for k, chunk in enumerate(chunks):
+        for _, expr in chunk:
+            read_later |= {s for s in expr.free_symbols if home.get(s, k) < k}
+    for _, expr in kernel.results:
+        read_later |= {s for s in expr.free_symbols if s in home}
+    slot = {symbol: i for i, symbol in enumerate(s for s, _ in temporaries if s in read_later)}
+    real, prefix = w.real, w.prefix
+    arguments = w.driven_arguments if driven else w.arguments
+    passed = f"t, x, {w.rp}" if driven else "t, x, p"
+    parts, calls = [], [f"{real} part_values[{max(len(slot), 1)}];"]
+    for k, chunk in enumerate(chunks):
+        part = ReducedKernel(name=f"{kernel.name}_part{k}", temporaries=chunk, results=(), ops_before=0,
+                             ops_after=0)
+        imported = sorted({s for _, e in chunk for s in e.free_symbols if home.get(s, k) < k}, key=slot.get)
+        body = [f"const {real} {w.names.symbols[s]} = part_values[{slot[s]}];" for s in imported]
+        body += w.head(part, reads_inputs=driven)
+        body += [f"part_values[{slot[s]}] = {w.names.symbols[s]};" for s, _ in chunk if s in slot]
+        name = f"{prefix}_{stem}_part{k}"
+        parts.append(record("void", name, f"{arguments}, {real} *part_values",
+                            f"Assignments {k * PART_ASSIGNMENTS} to {k * PART_ASSIGNMENTS + len(chunk) - 1} of "
+                            f"{stem} ({len(temporaries)} in {len(chunks)} parts).", body, static=True))
+        calls.append(f"{name}({passed}, part_values);")
+    tail = ReducedKernel(name=kernel.name, temporaries=(), results=kernel.results, ops_before=0, ops_after=0)
+    head = [line for line in w.head(tail, touches_state=True, reads_inputs=driven) if not line.startswith("(void)")]
+    loads = [f"const {real} {w.names.symbols[s]} = part_values[{slot[s]}];"
+             for s in sorted({s for _, e in kernel.results for s in e.free_symbols if s in slot}, key=slot.get)]
+    return parts, calls + head + loads
 
 
 def results(kernel: ReducedKernel, block: str) -> dict:

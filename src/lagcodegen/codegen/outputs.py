@@ -14,11 +14,12 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 
+import numpy as np
 import sympy as sp
 
 from ..symbolic.equations import EquationsOfMotion
 from .csyntax import comment_text, literal, record
-from .kernel_text import KernelWriter, results
+from .kernel_text import KernelWriter, kernel_parts, results
 from .ldlt import ldlt_factor_lines, ldlt_substitution_lines
 from .steppers import hot_dynamics
 
@@ -270,14 +271,15 @@ def _rhs_c(w: KernelWriter, kernel) -> dict:
 
 
 def _energy_c(w: KernelWriter, kernel) -> dict:
-    body = w.head(kernel)
+    body = kernel_parts(w, kernel, "energy", driven=False)[1] if w.system.recursive else w.head(kernel)
     body.append(f"return {w.expr(results(kernel, 'E')[(0, 0)], 'energy')};")
     return record(w.real, f"{w.prefix}_energy", w.arguments, "Total mechanical energy T + V.", body)
 
 
 def _points_c(w: KernelWriter, kernel) -> dict:
     names = w.system.point_names
-    body = w.head(kernel) + ["/* Point positions (x, y, z) */"]
+    body = kernel_parts(w, kernel, "points", driven=False)[1] if w.system.recursive else w.head(kernel)
+    body.append("/* Point positions (x, y, z) */")
     for (i, c), expr in results(kernel, "P").items():
         body.append(f"out[{3 * i + c}] = {w.expr(expr, f'point {names[i]}')};  "
                     f"/* {comment_text(names[i])}.{'xyz'[c]} */")
@@ -362,14 +364,14 @@ def _difference_jacobian_c(w: KernelWriter) -> dict:
     tree. Step h_c = eps^(1/3) max(1, |x_c|); error h^2/6 |f^(3)| + eps |f| / h, about
     eps^(2/3) (4e-11 in double, 2e-5 in float) relative to the scale of f and its third derivative."""
     prefix, real, size, n_q = w.prefix, w.real, w.n_state, w.n_q
-    fabs, cbrt = ("fabsf", "cbrtf") if real == "float" else ("fabs", "cbrt")
-    eps = "FLT_EPSILON" if real == "float" else "DBL_EPSILON"
+    fabs = "fabsf" if real == "float" else "fabs"
+    relative = literal(float(np.cbrt(np.finfo(np.float32 if real == "float" else np.float64).eps)), real)
     one = literal(1, real)
 
     def columns(vector: str, count: int, out: str, args: str) -> list:
         return [f"for (c = 0; c < {count}; ++c) {{",
                 f"    const {real} saved = {vector}[c];",
-                f"    const {real} h = {cbrt}({eps}) * ({fabs}(saved) > {one} ? {fabs}(saved) : {one});",
+                f"    const {real} h = {relative} * ({fabs}(saved) > {one} ? {fabs}(saved) : {one});  /* eps^(1/3) */",
                 f"    {real} width;",
                 f"    {vector}[c] = saved + h;",
                 f"    status = {prefix}_dynamics({args}, fp, fp + {n_q}, 0);",
@@ -655,6 +657,9 @@ def support_functions(w: KernelWriter) -> list:
     """Static C functions the requested outputs call, in the order the source defines them."""
     outputs = [OUTPUTS[name] for name in w.system.outputs]
     functions = []
+    for stem in ("energy", "points") if w.system.recursive else ():
+        if stem in w.system.outputs:
+            functions += kernel_parts(w, w.system.kernel(stem), stem, driven=False)[0]
     if any(o.checked for o in outputs):
         functions.append(_finite_result_function(w))
     if w.n_dependent or w.system.reactions or w.system.dependent_coordinates:
@@ -852,7 +857,7 @@ def _recursive_dynamics_functions(w: KernelWriter, kernel) -> list:
     """The tree's articulated-body algorithm as straight-line code (`symbolic.trees`); its pivots
     D_i = S_i^T I^A_i S_i are those of M's LDL^T in joint variables: each must be positive."""
     real, prefix, n = w.real, w.prefix, w.n_u
-    body = w.head(kernel, touches_state=True, reads_inputs=True)
+    parts, body = kernel_parts(w, kernel, "dynamics", driven=True)
     pivots = results(kernel, "D")
     body.append("/* Pivots of the articulated inertias: positive unless the tree is singular here */")
     body += [f"const {real} pivot_{j} = {w.expr(e, f'D[{j}]')};" for (j, _), e in pivots.items()]
@@ -866,8 +871,8 @@ def _recursive_dynamics_functions(w: KernelWriter, kernel) -> list:
     arguments = f"{w.driven_arguments}, {real} *qd, {real} *ud, {real} *gauge"
     doc = ("qd and ud of the tree by the articulated-body algorithm (three passes over the links, written "
            f"out); gauge (or NULL) receives the {n} articulated pivots (the singularity monitor of the drivers).")
-    if not hot_dynamics(w.system):
-        return [record("int", f"{prefix}_dynamics", arguments, doc, body, static=True)]
+    if parts or not hot_dynamics(w.system):
+        return parts + [record("int", f"{prefix}_dynamics", arguments, doc, body, static=True)]
     return [record("int", f"{prefix}_dynamics_hot", arguments, doc[:-1] + "; inlined into every explicit "
                    "Runge-Kutta stage.", body, hot=True),
             record("int", f"{prefix}_dynamics", arguments, "The same, as one function for the other callers.",
