@@ -245,3 +245,27 @@ def test_dependent_speeds_need_motion_constraints_and_no_sympy_model():
     kane = me.KanesMethod(N, q_ind=[x], u_ind=[me.dynamicsymbols("u")], kd_eqs=[x.diff(t) - me.dynamicsymbols("u")])
     with pytest.raises(ModelError, match="a KanesMethod brings its own"):
         Model("kane", sympy_model=kane, dependent_speeds=[x])
+
+
+def test_a_steady_turn_of_the_eliminated_disc_is_the_multipliers_ones_and_is_held(discs):
+    """steady_motion and steady_eigenvalues on the eliminated equations (every speed, in their order)
+    against the multipliers equations of the same disc (whose turn test_rolling_disc checks against
+    sympy's textbook disc): the same spin and stability; the compiled eliminated disc holds the turn."""
+    from lagcodegen.statics.steady import steady_eigenvalues, steady_motion
+
+    x, y = rolling_disc().coordinates[:2]
+    found = {}
+    for name, model in (("elimination", rolling_disc(dependent_speeds=[x, y])), ("multipliers", rolling_disc())):
+        eom = derive_equations(model)
+        turn = steady_motion(eom, {"theta": 0.3, "psi_d": 0.5, "phi_d": 1.0}, unknowns=["phi_d", "x_d", "y_d"],
+                             steady=["theta_d"])
+        modes = steady_eigenvalues(eom, turn, cyclic=["x", "y", "psi", "phi"], speeds=["psi_d", "theta_d", "phi_d"])
+        found[name] = (eom, turn, np.sort_complex(modes[np.abs(modes) > 1e-9]))
+    (eom, turn, modes), (_, kept, kept_modes) = found["elimination"], found["multipliers"]
+    assert abs(turn.values["phi_d"] - kept.values["phi_d"]) < 1e-12
+    np.testing.assert_allclose(modes, kept_modes, atol=1e-12)
+    system = discs["elimination"]
+    every = [str(s) for s in eom.q + eom.u]
+    state = [turn.state[every.index(name)] for name in system.layout.coordinates + system.layout.speeds]
+    run = simulate(system, state, t_end=2.0, h=1e-3)
+    assert run.ok and np.abs(run["theta"] - 0.3).max() < 1e-9 and np.abs(run["psi_d"] - 0.5).max() < 1e-9
