@@ -123,14 +123,24 @@ class Model:
         rates; rolling without slipping in 3D, a knife edge), energies and bodies routes, with
         multipliers as for the holonomic ones (the first kind extended to velocity constraints):
         ``M ud + A^T lambda = F`` with A stacking dphi/dq and the rows a; their multipliers are the
-        constraint forces, Baumgarte's alpha and the projection act on them too.
+        constraint forces, Baumgarte's alpha and the projection act on them too. With
+        ``dependent_speeds`` named they are eliminated instead (see there).
     formulation : {None, "elimination", "multipliers"}, optional
         How velocity constraints with named dependent speeds (Kane's ``u_dependent``) enter the
         equations: ``"elimination"`` (the default then) keeps the independent speeds in the state
         and computes the dependent ones from the constraints at every evaluation (Kane's minimal
         ODE; a singular constraint Jacobian in them is the status LCG_SINGULAR_CONSTRAINTS);
         ``"multipliers"`` keeps every speed in the state and adds the constraint forces (Lagrange I).
-        Models without dependent speeds always use multipliers.
+        Models without dependent speeds always use multipliers; on the energies and bodies routes
+        ``"elimination"`` needs ``dependent_speeds``.
+    dependent_speeds : sequence of dynamicsymbols, optional
+        Energies and bodies routes with ``motion_constraints`` (and no holonomic ``constraints``):
+        the coordinates whose rates the velocity constraints determine, one per motion constraint
+        (the Chaplygin sleigh's ``[y]``: y' = x' tan(theta)); they are eliminated as Kane's
+        ``u_dependent`` are, unless ``formulation="multipliers"``. The state is then q and the
+        other rates in the declared order; `lagcodegen.run.simulate.dependent_speeds` gives these.
+        Which rates are dependent decides where their constraint Jacobian block is singular
+        (here cos(theta) = 0): the user names them, as in Kane's method.
     measurements : mapping name -> Expr, optional
         Output expressions y = h(q, qd, r, t) (sensor readings, a spring force, a contact
         point's coordinate): compiled into one C function ``<prefix>_measurements`` and recorded
@@ -172,6 +182,7 @@ class Model:
     motion_constraints: Sequence[Any] = ()
     links: Sequence[Any] = ()
     formulation: str | None = None
+    dependent_speeds: Sequence[Any] = ()
 
     def __post_init__(self) -> None:
         self._check_name()
@@ -205,6 +216,7 @@ class Model:
         if self.formulation not in FORMULATIONS:
             raise ModelError(f"formulation must be one of {', '.join(map(repr, FORMULATIONS))}, "
                              f"got {self.formulation!r}")
+        set_("dependent_speeds", self._checked_dependent_speeds())
         self._check_route()
         self._check_connected()
         self._check_symbols()
@@ -313,6 +325,33 @@ class Model:
     def tree_points(self) -> tuple:
         """Names of the points of a tree's links, in link order."""
         return tuple(name for link in self.tree for name in link.points)
+
+    def _checked_dependent_speeds(self) -> tuple:
+        """Coordinates whose rates the motion constraints determine: one per constraint, no repeats."""
+        if not isinstance(self.dependent_speeds, (list, tuple)):
+            raise ModelError(f"dependent_speeds must be a list or tuple of coordinates, got "
+                             f"{type(self.dependent_speeds).__name__}")
+        named = tuple(self.dependent_speeds)
+        if not named:
+            return named
+        if self.sympy_model is not None:
+            raise ModelError("dependent_speeds are for the energies and bodies routes; a KanesMethod brings its own "
+                             "(u_dependent=)")
+        for q in named:
+            if q not in self.coordinates:
+                hint = f" (name the coordinate {q.args[0]}, not its rate)" if isinstance(q, sp.Derivative) else ""
+                raise ModelError(f"dependent speed {q!r} is not a coordinate of model {self.name!r}{hint} "
+                                 f"(coordinates: {', '.join(c.func.__name__ for c in self.coordinates)})")
+            if named.count(q) > 1:
+                raise ModelError(f"dependent speed {q.func.__name__!r} is listed twice")
+        if self.constraints:
+            raise ModelError(f"dependent_speeds with holonomic constraints= are not supported (model {self.name!r}): "
+                             "only velocity constraints are eliminated; drop dependent_speeds (multipliers)")
+        if len(named) != len(self.motion_constraints):
+            raise ModelError(f"dependent_speeds names {len(named)} coordinate(s) "
+                             f"({', '.join(q.func.__name__ for q in named)}) for {len(self.motion_constraints)} "
+                             "motion constraint(s): name one per motion constraint")
+        return named
 
     def _check_route(self) -> None:
         if self.tree:

@@ -23,7 +23,7 @@ from lagcodegen.run.simulate import simulate
 CRITICAL = 1 / np.sqrt(3)  # spin rate, m = r = g = 1
 
 
-def rolling_disc() -> Model:
+def rolling_disc(**extra) -> Model:
     x, y, psi, theta, phi = me.dynamicsymbols("x y psi theta phi")
     m, r, g = sp.symbols("m r g", positive=True)
     N, O = me.ReferenceFrame("N"), me.Point("O")
@@ -38,7 +38,7 @@ def rolling_disc() -> Model:
     slip = centre.pos_from(O).dt(N) + body.ang_vel_in(N).cross(contact.pos_from(centre))
     return Model("rolling_disc", [x, y, psi, theta, phi], [m, r, g], bodies=[disc], gravity=-g * N.z, frame=N,
                  origin=O, motion_constraints=[slip.dot(N.x), slip.dot(N.y)],
-                 parameter_values={"m": 1.0, "r": 1.0, "g": 1.0}, points={"centre": centre})
+                 parameter_values={"m": 1.0, "r": 1.0, "g": 1.0}, points={"centre": centre}, **extra)
 
 
 @pytest.fixture(scope="module")

@@ -163,6 +163,10 @@ def initial_state(system: CompiledSystem, x0) -> np.ndarray:
     names = layout.coordinates + layout.speeds
     if isinstance(x0, Mapping):
         unknown = [k for k in x0 if str(k) not in names]
+        dependent = [str(k) for k in unknown if str(k) in layout.dependent_speeds]
+        if dependent:
+            raise ValueError(f"{', '.join(dependent)}: dependent speed(s), computed from the velocity constraints "
+                             f"at every evaluation, not in the state; state: {', '.join(names)}")
         if unknown:
             raise ValueError(f"unknown state variable(s) {unknown}; state: {', '.join(names)}")
         missing = [c for c in layout.coordinates if c not in {str(k) for k in x0}]

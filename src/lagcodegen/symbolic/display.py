@@ -35,12 +35,14 @@ def display_equations(eom) -> tuple:
 def latex_equations(eom) -> str:
     """``M(q, t) \\dot u = F(q, u, t)`` in LaTeX, display form (and ``\\dot q = K`` when K is not u)."""
     M, F = display_equations(eom)
-    if list(eom.kinematics) == list(eom.u):  # u = qd: the accelerations are qdd
-        ud = sp.Matrix([sp.Symbol(rf"\ddot{{{sp.latex(q)}}}") for q in eom.q])
+    rates = list(eom.kinematics)
+    permuted = sorted(rates, key=str) == sorted(eom.u, key=str)  # u = qd, perhaps reordered (dependent speeds last)
+    if permuted:  # the accelerations are qdd
+        ud = sp.Matrix([sp.Symbol(rf"\ddot{{{sp.latex(eom.q[rates.index(u)])}}}") for u in eom.u])
     else:
         ud = sp.Matrix([sp.Symbol(rf"\dot{{{sp.latex(u)}}}") for u in eom.u])
     text = rf"{sp.latex(M)} {sp.latex(ud)} = {sp.latex(F)}"
-    if list(eom.kinematics) != list(eom.u):
+    if not permuted:
         qd = sp.Matrix([sp.Symbol(rf"\dot{{{sp.latex(q)}}}") for q in eom.q])
         text += rf", \quad {sp.latex(qd)} = {sp.latex(display_matrix(eom.kinematics))}"
     return text

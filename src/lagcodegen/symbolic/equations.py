@@ -66,9 +66,11 @@ class EquationsOfMotion:
         n_holonomic are velocity constraints A u + b = 0, whose phi rows are 0 and whose
         ``constraint_rate`` rows hold b.
     n_dependent : int
-        0, or m when the velocity constraints are eliminated (Model.formulation): the last m
-        speeds are dependent, computed from A u + b = 0, and the state holds q and the first
-        n_u - m speeds; M, F, A and gamma stay those of every speed.
+        0, or m when the velocity constraints are eliminated (Model.formulation, Kane's
+        u_dependent or Model.dependent_speeds): the last m speeds are dependent, computed from
+        A u + b = 0, and the state holds q and the first n_u - m speeds; M, F, A and gamma stay
+        those of every speed. On the energies and bodies routes the speeds are the coordinate
+        rates with the dependent ones moved last, so K is then a permutation of u.
     reactions : tuple of Symbol
         Unknown constraint forces (a contact's normal and friction forces) that Kane's auxiliary
         speeds expose; ``reaction_equations`` (one row per auxiliary speed, linear in them) hold
@@ -261,6 +263,30 @@ def _name(symbol) -> str:
 
 
 # -- assembly ---------------------------------------------------------------------------------
+def dependent_last(coords, u, speeds, M, F, dependent) -> tuple:
+    """(u, speeds, M, F) with the rates of the ``dependent`` coordinates moved last (in their
+    given order), the others kept in declared order: rows and columns of M, rows of F."""
+    last = [list(coords).index(c) for c in dependent]
+    order = [j for j in range(len(u)) if j not in last] + last
+    M, F = sp.Matrix(M), sp.Matrix(F)
+    return (tuple(u[j] for j in order), tuple(speeds[j] for j in order), M.extract(order, order),
+            F.extract(order, [0]))
+
+
+def _check_dependent_block(model, A, u, m: int) -> None:
+    """A_D, the last m columns of A (the dependent speeds), must not be singular everywhere: a speed
+    no constraint involves, or a constraint involving none of them, is named."""
+    p = len(u) - m
+    for j in range(m):
+        if all(A[i, p + j] == 0 for i in range(m)):
+            raise ModelError(f"model {model.name!r}: dependent speed {u[p + j]} appears in no motion constraint, so "
+                             "the constraints cannot determine it; name the rates the constraints involve")
+    for i in range(m):
+        if all(A[i, p + j] == 0 for j in range(m)):
+            raise ModelError(f"model {model.name!r}: motion constraint {i} involves none of the dependent speeds "
+                             f"{', '.join(map(str, u[p:]))}; name one of the rates it involves")
+
+
 def _immutable(matrix) -> sp.ImmutableMatrix:
     return matrix if isinstance(matrix, sp.ImmutableMatrix) else sp.ImmutableMatrix(matrix)
 
@@ -272,11 +298,16 @@ def assemble(model, coords, speeds, q, u, M, F, K, T, V, to_plain, inputs_checke
     whose components in the model's frame are already known (in plain symbols). ``constraints``
     (holonomic, phi(q, t) = 0) and ``motion`` (velocity constraints, linear in the coordinate
     rates) default to the model's; a sympy model brings its own."""
-    if model.formulation == "elimination" and model.sympy_model is None:
-        raise ModelError(f"model {model.name!r}: formulation 'elimination' needs named dependent speeds, which "
-                         "a KanesMethod gives (u_dependent=); the energies and bodies routes use multipliers")
+    named = tuple(getattr(model, "dependent_speeds", ()))
+    if model.formulation == "elimination" and model.sympy_model is None and not named:
+        raise ModelError(f"model {model.name!r}: formulation 'elimination' needs named dependent speeds: name the "
+                         "coordinates whose rates the motion constraints determine, Model(..., dependent_speeds=[...]) "
+                         "(a KanesMethod gives them as u_dependent=)")
     constraints = tuple(model.constraints) if constraints is None else tuple(constraints)
     motion = tuple(getattr(model, "motion_constraints", ())) if motion is None else tuple(motion)
+    eliminated = bool(named) and model.formulation != "multipliers"
+    if eliminated:  # the dependent speeds last; K keeps qd_j = (the speed of q_j): a permutation of u
+        u, speeds, M, F = dependent_last(coords, u, speeds, M, F, named)
     r = input_symbols(model.inputs)
     if not inputs_checked:
         check_declared([("mass matrix", M), ("forcing", F)], model.parameters, (), extra=q + u + r)
@@ -330,6 +361,10 @@ def assemble(model, coords, speeds, q, u, M, F, K, T, V, to_plain, inputs_checke
         values.update({BAUMGARTE_ALPHA: 0.0, BAUMGARTE_BETA: 0.0})
         kinds = " and ".join(k for k, rows in (("holonomic", phi.rows), ("velocity", w.rows)) if rows)
         route += f" with {kinds} constraints (Lagrange I)"
+        if eliminated:
+            _check_dependent_block(model, constrained["constraint_jacobian"], u, w.rows)
+            constrained["n_dependent"] = w.rows
+            route = route.replace("(Lagrange I)", f"(dependent speeds {', '.join(map(str, u[-w.rows:]))} eliminated)")
     return EquationsOfMotion(
         name=model.name, route=route, t=TIME, coordinates=tuple(coords), speeds=tuple(speeds),
         q=tuple(q), u=tuple(u), parameters=parameters, parameter_values=values,
