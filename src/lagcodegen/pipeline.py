@@ -5,7 +5,9 @@ stage stays callable on its own for users who want to inspect or change what pas
 The rendered sources are cached on disk beside the built modules, keyed by the derived equations
 and every option, so loading an unchanged model again skips CSE and rendering as well as gcc.
 A sources entry is plain JSON (nothing runs on load) after a line with its sha256: any damaged
-byte makes it render again and replace the entry, never compile stale or edited C.
+byte makes it render again and replace the entry, never compile stale or edited C. A model
+stated in plain expressions (a tree, or the energies route) is also keyed before it is derived:
+a model entry names its sources entry, so loading it again skips the derivation too.
 """
 from __future__ import annotations
 
@@ -28,7 +30,8 @@ import sympy as sp
 from sympy.core.function import AppliedUndef
 
 from . import __version__
-from .codegen.lane_kernel import DEFAULT_LANES
+from .codegen.kernel_text import PART_ASSIGNMENTS
+from .codegen.lane_kernel import DEFAULT_LANES, lanes_apply
 from .codegen.outputs import KernelError, applicable_methods, applicable_outputs
 from .codegen.printer import DEFAULT_TRIG
 from .codegen.reduce import reduce_expressions
@@ -95,6 +98,11 @@ def compile_model(model: Model | EquationsOfMotion, *, outputs=None, fixed: Mapp
     >>> system.layout.parameters, system.layout.methods
     (('m', 'k'), ('rk4',))
     """
+    alias = _model_entry(model, outputs, fixed, methods, precision, (trig, lanes, lane_trig), cache_dir)
+    stored = _load_sources(_aliased_sources(alias, cache_dir)) if alias is not None else None
+    if stored is not None:
+        sources, with_lanes, ops = stored
+        return _build(model.name, sources, with_lanes, ops, cache_dir, extra_compile_args)
     eom = model if isinstance(model, EquationsOfMotion) else derive_equations(model)
     methods = tuple(methods)
     if methods == DEFAULT_METHODS:  # the defaults that apply; a method asked for by name is checked instead
@@ -113,17 +121,79 @@ def compile_model(model: Model | EquationsOfMotion, *, outputs=None, fixed: Mapp
         system = reduce_expressions(eom, outputs, fixed)
         sources = render_sources(system, precision, methods=methods, trig=trig)
         with_lanes = render_sources(system, precision, methods=methods, trig=trig, lanes=lanes,
-                                    lane_trig=lane_trig) if lanes else None
+                                    lane_trig=lane_trig) if lanes and lanes_apply(system, methods) else None
         if with_lanes is not None and f"{with_lanes.layout.prefix}_sweep_lanes" not in with_lanes.layout.functions:
             with_lanes = None
-        stored = (sources, with_lanes, {k.name: k.ops_after for k in system.kernels})
+        stored = (sources, with_lanes, _function_ops(system))
         _store_sources(entry, stored)
+    if alias is not None:
+        _store_alias(alias, key)
     sources, with_lanes, ops = stored
-    cost = estimate_build_cost(eom.name, ops, sources.layout.methods)
+    return _build(eom.name, sources, with_lanes, ops, cache_dir, extra_compile_args)
+
+
+def _function_ops(system) -> dict:
+    """Operations per C function for the build-cost estimate: a kernel, or the parts a long
+    recursive kernel is split into (`kernel_text.kernel_parts`), whose cost adds up linearly."""
+    ops = {}
+    for kernel in system.kernels:
+        parts = math.ceil(len(kernel.temporaries) / PART_ASSIGNMENTS) if system.recursive else 1
+        if parts <= 1:
+            ops[kernel.name] = kernel.ops_after
+        else:
+            ops.update({f"{kernel.name} part {k}": kernel.ops_after // parts for k in range(parts)})
+    return ops
+
+
+def _build(name: str, sources: CSources, with_lanes, ops: dict, cache_dir, extra_compile_args) -> CompiledSystem:
+    cost = estimate_build_cost(name, ops, sources.layout.methods)
     compiled = build_module(sources, cache_dir=cache_dir, extra_compile_args=extra_compile_args, cost=cost)
     if with_lanes is None:
         return compiled
     return replace(compiled, lane_build=(with_lanes, cache_dir, tuple(extra_compile_args)))
+
+
+#: routes whose models hold only sympy expressions and plain data, so that their pickled bytes key
+#: them (bodies and sympy models hold frames and points, whose pickles carry identities)
+_KEYED_ROUTES = ("tree", "energies")
+
+
+def _model_entry(model, outputs, fixed, methods, precision, code_options, cache_dir) -> Path | None:
+    """Where the model entry of ``model`` with these options lives, or None when the model is
+    not keyed before derivation (an EquationsOfMotion, a route with frames and points, or a
+    model that does not pickle)."""
+    if not isinstance(model, Model) or model.route not in _KEYED_ROUTES:
+        return None
+    fields = tuple((f.name, getattr(model, f.name)) for f in dataclasses.fields(model))
+    try:
+        buffer = io.BytesIO()
+        pickler = pickle.Pickler(buffer, protocol=4)
+        pickler.fast = True  # as equations_digest: bytes that follow the values
+        pickler.dump((fields, None if outputs is None else list(outputs),
+                      sorted((str(k), repr(v)) for k, v in (fixed or {}).items()), list(methods)))
+    except (pickle.PicklingError, TypeError, AttributeError, ValueError, RecursionError):
+        return None
+    key = cache.source_key({"lagcodegen": __version__, "sympy": sp.__version__,
+                            "model": hashlib.sha256(buffer.getvalue()).hexdigest(),
+                            "options": repr((precision, code_options)), "code": _package_digest()})
+    return cache.cache_dir(cache_dir) / "sources" / f"model-{key[:32]}.txt"
+
+
+def _aliased_sources(alias: Path, cache_dir) -> Path:
+    """The sources entry a model entry names (a missing or damaged one names none)."""
+    try:
+        head, _, body = alias.read_bytes().partition(b"\n")
+    except OSError:
+        return alias.with_suffix(".missing")
+    if head != f"{_SOURCES_MAGIC} {hashlib.sha256(body).hexdigest()}".encode("ascii") or len(body) != 64 or \
+            not all(c in b"0123456789abcdef" for c in body):
+        return alias.with_suffix(".missing")
+    return cache.cache_dir(cache_dir) / "sources" / f"{body.decode('ascii')[:32]}.json"
+
+
+def _store_alias(alias: Path, key: str) -> None:
+    body = key.encode("ascii")
+    _write_atomically(alias, f"{_SOURCES_MAGIC} {hashlib.sha256(body).hexdigest()}\n".encode("ascii") + body)
 
 
 def _checked_fixed(eom: EquationsOfMotion, fixed: Mapping | None) -> dict:
@@ -252,7 +322,11 @@ def _store_sources(entry: Path, stored: tuple) -> None:
     body = json.dumps({"sources": dataclasses.asdict(sources),
                        "lanes": None if lanes is None else dataclasses.asdict(lanes), "ops": ops},
                       sort_keys=True, ensure_ascii=False).encode("utf-8")
-    text = f"{_SOURCES_MAGIC} {hashlib.sha256(body).hexdigest()}\n".encode("ascii") + body
+    _write_atomically(entry, f"{_SOURCES_MAGIC} {hashlib.sha256(body).hexdigest()}\n".encode("ascii") + body)
+
+
+def _write_atomically(entry: Path, text: bytes) -> None:
+    """Write the entry atomically; a cache dir that cannot take it only costs a warning."""
     try:
         cache.subdir(entry.parent.parent, entry.parent.name)
         if entry.is_dir() and not entry.is_symlink():  # a damaged cache: the entry must be a file

@@ -176,6 +176,8 @@ def cmd_emit(args) -> int:
         (out / sources.source_name).write_text(sources.source)
     except OSError as error:
         raise UsageError(f"--out {args.out}: cannot write {error.filename}: {error.strerror}") from None
+    if system.formulation:
+        print(f"formulation {system.formulation}; C source {len(sources.source)} bytes")
     for kernel in system.kernels:
         print(f"{kernel.name:12s} ops {kernel.ops_before:6d} before CSE, {kernel.ops_after:6d} after")
     if system.fixed_parameters:

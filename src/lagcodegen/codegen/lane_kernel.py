@@ -64,11 +64,13 @@ class LanePrinter(CPrinter):
 def lanes_apply(system, methods) -> bool:
     """True when the lane kernel can serve this system: unconstrained, rhs, an explicit method. A
     driven model's lanes take inputs constant per member, as parameters after the free ones (a
-    sweep over input amplitudes); inputs that vary in time run on the scalar sweep."""
+    sweep over input amplitudes); inputs that vary in time run on the scalar sweep. A tree's
+    recursive kernel has no lanes: the members of its sweeps run one after another (its kernel
+    is long, and lanes would multiply its compile time for little: it is not M ud = F)."""
     from ..integrators.schemes import get_scheme
 
     return any(get_scheme(m).lane_capable for m in methods) and not system.n_constraints and \
-        not system.u_dependent and "rhs" in system.outputs
+        not system.u_dependent and "rhs" in system.outputs and not system.recursive
 
 
 def lane_context(system, names, real: str, methods: list, lanes: int, trig: str = "fast") -> dict:

@@ -59,6 +59,9 @@ class KernelLayout:
         Speeds eliminated by the velocity constraints (``<prefix>_dependent_speeds``), not in x.
     reactions : tuple of str
         Constraint forces from Kane's auxiliary speeds (``<prefix>_reactions``), in its ``out[]`` order.
+    formulation : str
+        A tree's formulation (closed form or recursive), why, and the estimated operations of
+        both (`symbolic.trees.choose_formulation`); "" for other models.
     """
 
     model: str
@@ -77,6 +80,7 @@ class KernelLayout:
     measurements: tuple = ()
     dependent_speeds: tuple = ()
     reactions: tuple = ()
+    formulation: str = ""
 
     @property
     def n_q(self) -> int:
@@ -255,6 +259,7 @@ def _layout(system: ReducedSystem, names: Names, real: str, model_name: str, fun
         points=system.point_names, functions=exported, methods=methods, n_constraints=system.n_constraints,
         inputs=tuple(s.name for s in system.inputs), measurements=tuple(system.measurements),
         dependent_speeds=tuple(s.name for s in system.u_dependent), reactions=tuple(s.name for s in system.reactions),
+        formulation=system.formulation,
         defaults=tuple((p.name, system.parameter_values[p]) for p in system.free_parameters
                        if p in system.parameter_values))
 
@@ -276,7 +281,8 @@ def _context(system: ReducedSystem, names: Names, layout: KernelLayout, function
     upper = names.prefix.upper()
     return {
         "version": __version__, "sympy_version": sp.__version__, "model": comment_text(layout.model),
-        "route": system.route, "key": hashlib.sha256(key_text.encode()).hexdigest()[:16],
+        "route": system.route, "formulation": comment_text(system.formulation),
+        "key": hashlib.sha256(key_text.encode()).hexdigest()[:16],
         "prefix": names.prefix, "guard": f"{upper}_H", "macro": upper, "real": real,
         "n_q": n_q, "n_u": n, "n_state": n_q + n, "n_params": len(param_rows), "n_points": len(point_rows),
         "state_rows": state_rows, "dependent_rows": dependent_rows, "param_rows": param_rows, "fixed_rows": fixed_rows,

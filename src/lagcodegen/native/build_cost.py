@@ -107,7 +107,7 @@ def estimate_build_cost(model: str, ops: Mapping[str, int], methods) -> BuildCos
     """
     methods = tuple(methods)
     counts = tuple(sorted(((str(k), int(v)) for k, v in ops.items()), key=lambda kv: -kv[1]))
-    cheap = {k: v for k, v in counts if k in _EXPLICIT_KERNELS}
+    cheap = {k: v for k, v in counts if k.split(" part ")[0] in _EXPLICIT_KERNELS}
     seconds, megabytes = _estimate(dict(counts), len(methods))
     cheaper_seconds, cheaper_megabytes = _estimate(cheap, 1)
     return BuildCost(model, seconds, megabytes, counts, methods, cheaper_seconds, cheaper_megabytes)

@@ -66,7 +66,7 @@ class FormulationChoice:
     reason: str
 
     def report(self) -> str:
-        return (f"formulation {self.name} ({self.reason}; estimated ops per evaluation: "
+        return (f"{self.name} ({self.reason}; estimated operations per evaluation: "
                 f"closed form {self.closed_ops}, recursive {self.recursive_ops})")
 
 
