@@ -423,6 +423,66 @@ def slider_crank_state(theta: float, theta_d: float = 0.0, r: float = 0.1, L: fl
 #: closed-loop systems above (cartesian_pendulum, slider_crank, four_bar) are not listed: they
 #: start from consistent states of their own (`slider_crank_state`, `four_bar_state`), which
 #: those callers do not give; tests/constraints covers them.
+def ragdoll(links_per_branch: int = 6, formulation: str | None = None) -> Model:
+    """A planar ragdoll: a pelvis (mass m0, inertia J0 about its centre) free in the vertical plane
+    (x, y slide, phi turns it) with three branches (two legs and a spine) of ``links_per_branch``
+    uniform rods each (mass m, length l, inertia m l^2/12 about the centre), hinged end to end by
+    joints with torsional springs k and dampers c; gravity g along -y. The coordinates are the
+    pelvis's x, y, phi and each joint's relative angle; 3 + 3 * links_per_branch bodies of which
+    the first two (the slides) are massless."""
+    if not isinstance(links_per_branch, int) or links_per_branch < 1:
+        raise ValueError(f"a ragdoll needs links_per_branch >= 1, got {links_per_branch!r}")
+    x, y, phi = me.dynamicsymbols("x y phi")
+    m0, J0, m, l, k, c, g = sp.symbols("m0 J0 m l k c g", positive=True)
+    links = [Link("slide_x", None, "prismatic", (1, 0, 0), x),
+             Link("slide_y", "slide_x", "prismatic", (0, 1, 0), y),
+             Link("pelvis", "slide_y", "revolute", (0, 0, 1), phi, mass=m0, inertia=(0, 0, J0, 0, 0, 0),
+                  points={"pelvis": (0, 0, 0)})]
+    angles, joints = [x, y, phi], []
+    # the legs hang from the pelvis's sides, the spine rises from its middle
+    branches = (("left_leg", (-l / 4, 0, 0), -1), ("right_leg", (l / 4, 0, 0), -1), ("spine", (0, 0, 0), 1))
+    for branch, hip, direction in branches:
+        parent, offset = "pelvis", hip
+        for i in range(links_per_branch):
+            theta = me.dynamicsymbols(f"{branch}_{i + 1}")
+            name = f"{branch}{i + 1}"
+            links.append(Link(name, parent, "revolute", (0, 0, 1), theta, offset=offset, mass=m,
+                              center=(0, direction * l / 2, 0), inertia=(0, 0, m * l ** 2 / 12, 0, 0, 0),
+                              points={f"{name}_end": (0, direction * l, 0)}))
+            angles.append(theta)
+            joints.append(theta)
+            parent, offset = name, (0, direction * l, 0)
+    V = sum(k * q ** 2 / 2 for q in joints)
+    R = sum(c * q.diff(TIME) ** 2 / 2 for q in joints)
+    values = {m0: 10.0, J0: 0.5, m: 2.0, l: 0.4, k: 50.0, c: 0.5, g: 9.81}
+    return Model(f"ragdoll_{3 * links_per_branch + 3}", angles, (m0, J0, m, l, k, c, g), tree=links,
+                 gravity=(0, -g, 0), potential_energy=V, dissipation=R, parameter_values=values,
+                 formulation=formulation)
+
+
+def spherical_chain(n: int = 3, formulation: str | None = None) -> Model:
+    """A 3D chain of n uniform rods (mass m, length l, inertia m l^2/12 about the transverse axes,
+    m r^2/2 about their own axis) hanging along -z from the origin, joined end to end by spherical
+    joints; each spherical joint is three revolute axes z, x, y of its link's frame (angles
+    a_i, b_i, c_i, relative to the rod above; the first two massless); gravity g along -z."""
+    if not isinstance(n, int) or n < 1:
+        raise ValueError(f"a spherical chain needs n >= 1 links, got {n!r}")
+    m, l, r, g = sp.symbols("m l r g", positive=True)
+    links, coordinates, parent, offset = [], [], None, (0, 0, 0)
+    transverse, axial = m * l ** 2 / 12, m * r ** 2 / 2
+    for i in range(1, n + 1):
+        a, b, c = me.dynamicsymbols(f"a{i} b{i} c{i}")
+        links += [Link(f"rod{i}_z", parent, "revolute", (0, 0, 1), a, offset=offset),
+                  Link(f"rod{i}_x", f"rod{i}_z", "revolute", (1, 0, 0), b),
+                  Link(f"rod{i}", f"rod{i}_x", "revolute", (0, 1, 0), c, mass=m, center=(0, 0, -l / 2),
+                       inertia=(transverse, transverse, axial, 0, 0, 0), points={f"tip{i}": (0, 0, -l)})]
+        coordinates += [a, b, c]
+        parent, offset = f"rod{i}", (0, 0, -l)
+    values = {m: 1.0, l: 0.5, r: 0.02, g: 9.81}
+    return Model(f"spherical_chain_{n}", coordinates, (m, l, r, g), tree=links, gravity=(0, 0, -g),
+                 parameter_values=values, formulation=formulation)
+
+
 EXAMPLES = {
     "rolling_wheels": rolling_wheels,
     "elastic_pendulum": elastic_pendulum,

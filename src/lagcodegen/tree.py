@@ -168,7 +168,7 @@ def joint_map(links, coordinates) -> sp.Matrix:
             coefficient = link.variable.diff(c)
             if coefficient.free_symbols or coefficient.atoms(sp.Function):
                 raise TreeError(f"link {link.name!r}: the joint variable {link.variable} is not linear in "
-                                f"{c} with a constant coefficient")
+                                f"{c.func.__name__} with a constant coefficient")
             P[i, column[c]] = coefficient
             rest = rest - coefficient * c
         rest = sp.expand(rest)
