@@ -66,8 +66,9 @@ def _by_coefficient(terms: dict) -> dict:
 def _factored_sum(terms: list):
     """sum(terms) with what every term shares pulled out: 2*l1*l2*m2 + 2*l1*l2*m3 ->
     2*l1*l2*(m2 + m3). Exact factors only (no gcd of powers); cheaper than sympy's factor_terms."""
-    if len(terms) == 1:
-        return terms[0]
+    terms = [t for t in terms if t != 0]  # a zero's number would divide the others below (0/0)
+    if len(terms) <= 1:
+        return terms[0] if terms else sp.S.Zero
     split = [t.as_coeff_Mul() for t in terms]
     shared = set(sp.Mul.make_args(split[0][1]))
     for _, rest in split[1:]:
