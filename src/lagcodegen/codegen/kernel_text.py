@@ -5,7 +5,7 @@ renderer (`render.py`) lays the functions out with the templates.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
 from ..model import TIME
@@ -211,8 +211,6 @@ def kernel_parts(w: KernelWriter, kernel: ReducedKernel, stem: str, driven: bool
     the values later parts and the results read through the caller's array ``part_values``.
     Returns (the part functions, the caller's lines up to its results); a short kernel: no parts
     and `KernelWriter.head`'s lines."""
-    from .reduce import ReducedKernel
-
     temporaries = kernel.temporaries
     if len(temporaries) <= PART_ASSIGNMENTS:
         return [], w.head(kernel, touches_state=True, reads_inputs=driven)
@@ -230,8 +228,8 @@ def kernel_parts(w: KernelWriter, kernel: ReducedKernel, stem: str, driven: bool
     passed = f"t, x, {w.rp}" if driven else "t, x, p"
     parts, calls = [], [f"{real} part_values[{max(len(slot), 1)}];"]
     for k, chunk in enumerate(chunks):
-        part = ReducedKernel(name=f"{kernel.name}_part{k}", temporaries=chunk, results=(), ops_before=0,
-                             ops_after=0)
+        part = replace(kernel, name=f"{kernel.name}_part{k}", temporaries=chunk, results=(), ops_before=0,
+                       ops_after=0)
         imported = sorted({s for _, e in chunk for s in e.free_symbols if home.get(s, k) < k}, key=slot.get)
         body = [f"const {real} {w.names.symbols[s]} = part_values[{slot[s]}];" for s in imported]
         body += w.head(part, reads_inputs=driven)
@@ -241,7 +239,7 @@ def kernel_parts(w: KernelWriter, kernel: ReducedKernel, stem: str, driven: bool
                             f"Assignments {k * PART_ASSIGNMENTS} to {k * PART_ASSIGNMENTS + len(chunk) - 1} of "
                             f"{stem} ({len(temporaries)} in {len(chunks)} parts).", body, static=True))
         calls.append(f"{name}({passed}, part_values);")
-    tail = ReducedKernel(name=kernel.name, temporaries=(), results=kernel.results, ops_before=0, ops_after=0)
+    tail = replace(kernel, temporaries=(), ops_before=0, ops_after=0)
     head = [line for line in w.head(tail, touches_state=True, reads_inputs=driven) if not line.startswith("(void)")]
     loads = [f"const {real} {w.names.symbols[s]} = part_values[{slot[s]}];"
              for s in sorted({s for _, e in kernel.results for s in e.free_symbols if s in slot}, key=slot.get)]
