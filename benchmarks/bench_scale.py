@@ -20,7 +20,9 @@ a hard time-out per phase (``--timeout``, default 120 s) and a memory cap on its
     Pinocchio RK4   peers/pinocchio_chain.cpp: classic RK4 whose 4 stages call pinocchio::aba (tau = 0),
                     g++ -O3 -DNDEBUG; two builds: "inline" (header only, -march=native, every template
                     instantiated in the program) and "lib" (the wheel's precompiled aba from
-                    libpinocchio_default; no -march=native, which would change Eigen's alignment ABI)
+                    libpinocchio_default; no -march=native, which would change Eigen's alignment ABI:
+                    free() of a misaligned pointer), each run with aba's Convention::LOCAL (default)
+                    and ::WORLD; the goals use the fastest of the four
 
 Peak memory: the parent samples the worker's whole process tree (the worker and every descendant,
 gcc included) every SAMPLE_SECONDS with psutil and sums their RSS; the column is the largest of
@@ -38,13 +40,14 @@ Pinocchio's relative joint angles summed) of MuJoCo, both Pinocchio builds and l
 of the inline Pinocchio build run with rotational inertia exactly 0 (lagcodegen's point masses;
 MuJoCo needs > 0, so the peers' timed models carry 1e-12 kg m^2, as bench_sweep's).
 Sweep row at n = SWEEP_N (else the largest measured n below it, as a smoke run, goal not run):
-lagcodegen ``sweep(system, {m1, m_n grid}, method="rk4", threads=1, track_energy=False)``
+lagcodegen ``sweep(system, {m1, m_n grid}, method="rk4", threads=1, track_energy=False)`` of a
+``compile_model(..., methods=("rk4",))`` build with its lane kernel (compiled untimed)
 member-steps per CPU second against bench_sweep's MuJoCo rollout worker (same member count).
 
 Goals (issue 15): cold compile_model with every default method at n = 20 <= 3 s, n = 50 <= 10 s,
 n = 100 <= 30 s; peak memory (gcc included) <= 1 GiB at n = 100; warm <= 100 ms at every n; RK4
-step >= 3x faster than MuJoCo's RK4 and >= 2x faster than Pinocchio's ABA-based RK4 (its faster
-build) at n = 10, 20, 50, 100; sweep throughput at n = 50 >= 3x MuJoCo rollout per core;
+step >= 3x faster than MuJoCo's RK4 and >= 2x faster than Pinocchio's ABA-based RK4 (its fastest
+run) at n = 10, 20, 50, 100; sweep throughput at n = 50 >= 3x MuJoCo rollout per core;
 derivation at n = 100 <= 5 s.
 
 Run through the suite runner: ``python benchmarks/run.py scale [--quick] [--timeout S]``.
@@ -83,7 +86,9 @@ MEMORY_CAP_GIB = 12.0
 SAMPLE_SECONDS = 0.05
 MUJOCO_CHUNK = 1000
 SWEEP_N = 50
-PIN_VARIANTS = ("inline", "lib")
+PIN_VARIANTS = ("inline", "lib")    # builds of peers/pinocchio_chain.cpp
+PIN_CONVENTIONS = ("local", "world")  # aba's Convention, chosen at run time
+PIN_RUNS = tuple(f"{v}_{c}" for v in PIN_VARIANTS for c in PIN_CONVENTIONS)
 
 COLD_GOALS = {20: 3.0, 50: 10.0, 100: 30.0}        # n -> seconds
 MEMORY_GOAL = (100, 1024.0)                         # n, MiB
@@ -226,7 +231,8 @@ def worker_sweep_lcg(n: int, cache_dir: str, options: dict, target: float, quick
     from lagcodegen.pipeline import compile_model
     from lagcodegen.run.sweep import sweep
 
-    system = compile_model(lagcodegen_chain(n), cache_dir=cache_dir, **{**COMPILE_OPTIONS, **options})
+    options = {**COMPILE_OPTIONS, "methods": ("rk4",), **options}  # RK4 only: the sweep needs no other
+    system = compile_model(lagcodegen_chain(n), cache_dir=cache_dir, **options)
     system.lane_variant()  # compiled here, untimed: sweep() builds it on its first lane run
     grid, x0 = _mass_grid(n, quick), _x0(n)
     members = int(np.prod([len(v) for v in grid.values()]))
@@ -320,12 +326,13 @@ def build_pinocchio_chain(variant: str, timeout: float = PIN_BUILD_TIMEOUT) -> t
         return target, time.perf_counter() - start
 
 
-def run_pinocchio(binary: Path, n: int, target: float, timeout: float, inertia: float = 1e-12) -> dict:
-    """Run the peer for n links from `_x0` (rotational inertia ``inertia`` about each mass); its
-    JSON plus ``final`` as absolute state."""
+def run_pinocchio(binary: Path, n: int, target: float, timeout: float, inertia: float = 1e-12,
+                  convention: str = "local") -> dict:
+    """Run the peer for n links from `_x0` (rotational inertia ``inertia`` about each mass, aba's
+    ``convention``); its JSON plus ``final`` as absolute state."""
     state = " ".join(repr(float(v)) for v in _relative(_x0(n), n))
     try:
-        done = subprocess.run([str(binary), str(n), str(CHECK_STEPS), repr(target), str(REPEAT), repr(inertia)],
+        done = subprocess.run([str(binary), str(n), str(CHECK_STEPS), repr(target), str(REPEAT), repr(inertia), convention],
                               input=state,
                               capture_output=True, text=True, timeout=timeout)
     except subprocess.TimeoutExpired:
@@ -482,11 +489,12 @@ def measure(options) -> dict:
                      f"RK4 {_brief(row['cold_rk4'], 'ns_cpu')} ns")
             row["mujoco"] = measure_worker("mujoco", [n, target], [IMPORT_TIMEOUT, timeout], cap)
             progress(f"scale n={n}: MuJoCo RK4 {_brief(row['mujoco'], 'ns_cpu')} ns")
-            for variant in PIN_VARIANTS:
+            for run_name in PIN_RUNS:
+                variant, convention = run_name.split("_")
                 build = pin_builds[variant]
-                row[f"pin_{variant}"] = run_pinocchio(Path(build["path"]), n, target, timeout) \
+                row[f"pin_{run_name}"] = run_pinocchio(Path(build["path"]), n, target, timeout, convention=convention) \
                     if build["status"] == "ok" else {"status": "not built"}
-                progress(f"scale n={n}: Pinocchio {variant} RK4 {_brief(row[f'pin_{variant}'], 'ns_cpu')} ns")
+                progress(f"scale n={n}: Pinocchio {variant} {convention} RK4 {_brief(row[f'pin_{run_name}'], 'ns_cpu')} ns")
             if pin_builds["inline"]["status"] == "ok":  # the check only: lagcodegen's masses have no inertia
                 row["pin_zero"] = run_pinocchio(Path(pin_builds["inline"]["path"]), n, 0.01, timeout, inertia=0.0)
             rows.append(row)
@@ -557,8 +565,8 @@ def lcg_step(row: dict) -> float | None:
 
 
 def pin_step(row: dict) -> tuple:
-    """(ns/step, variant) of the faster Pinocchio build at this n."""
-    found = [(_ok(row.get(f"pin_{v}"), "ns_cpu"), v) for v in PIN_VARIANTS]
+    """(ns/step, build_convention) of the fastest Pinocchio run at this n."""
+    found = [(_ok(row.get(f"pin_{v}"), "ns_cpu"), v) for v in PIN_RUNS]
     found = [f for f in found if f[0] is not None]
     return min(found) if found else (None, None)
 
@@ -594,8 +602,9 @@ def cost_series(rows) -> dict:
         "lagcodegen RK4 step [ns]": [(r["n"], lcg_step(r)) for r in rows],
         "MuJoCo RK4 step [ns]": [(r["n"], _ok(r["mujoco"], "ns_cpu")) for r in rows],
     }
-    for variant in PIN_VARIANTS:
-        series[f"Pinocchio ABA RK4 step, {variant} [ns]"] = [(r["n"], _ok(r[f"pin_{variant}"], "ns_cpu")) for r in rows]
+    for run_name in PIN_RUNS:
+        series[f"Pinocchio ABA RK4 step, {run_name.replace('_', ' ')} [ns]"] = [
+            (r["n"], _ok(r[f"pin_{run_name}"], "ns_cpu")) for r in rows]
     return series
 
 
@@ -611,10 +620,11 @@ def check_diffs(row: dict) -> dict:
     """Max abs differences between the contenders' states after CHECK_STEPS steps."""
     finals = {"lagcodegen": _ok(row["warm"], "final") or _ok(row["cold_rk4"], "final"),
               "MuJoCo": _ok(row["mujoco"], "final"),
-              **{f"Pinocchio {v}": _ok(row[f"pin_{v}"], "final") for v in PIN_VARIANTS},
+              **{f"Pinocchio {v.replace('_', ' ')}": _ok(row[f"pin_{v}"], "final") for v in PIN_RUNS},
               "Pinocchio inertia 0": _ok(row.get("pin_zero"), "final")}
-    pairs = [("MuJoCo", "Pinocchio inline"), ("MuJoCo", "Pinocchio lib"), ("Pinocchio inline", "Pinocchio lib"),
-             ("lagcodegen", "MuJoCo"), ("lagcodegen", "Pinocchio inline"), ("lagcodegen", "Pinocchio inertia 0")]
+    pin = [f"Pinocchio {v.replace('_', ' ')}" for v in PIN_RUNS]
+    pairs = [*[("MuJoCo", p) for p in pin], *[(pin[0], p) for p in pin[1:]], ("lagcodegen", "MuJoCo"),
+             ("lagcodegen", pin[0]), ("lagcodegen", "Pinocchio inertia 0")]
     return {f"{a} vs {b}": _max_diff(finals[a], finals[b]) for a, b in pairs}
 
 
@@ -647,7 +657,9 @@ def format_report(result: dict, start_load: float) -> str:
         f"in calls of {MUJOCO_CHUNK} steps (state written every step, as its API does); Pinocchio: "
         "peers/pinocchio_chain.cpp, RK4 with 4 pinocchio::aba per step, timed in C++ (CLOCK_PROCESS_CPUTIME_ID)",
         *[f"    Pinocchio {v}: {b.get('command', b['status'])}" for v, b in builds.items()],
-        "MuJoCo/lcg, Pin/lcg: peer ns / lagcodegen ns (> 1: lagcodegen faster); Pin = the faster Pinocchio build",
+        "Pin <build> <convention>: aba(..., Convention::LOCAL (its default) or ::WORLD), chosen at run time",
+        "MuJoCo/lcg, Pin/lcg: peer ns / lagcodegen ns (> 1: lagcodegen faster); Pin = the fastest of the four "
+        "Pinocchio runs",
     ]
     compile_body = []
     for r in rows:
@@ -660,10 +672,10 @@ def format_report(result: dict, start_load: float) -> str:
     for r in rows:
         ours, mujoco, pin = lcg_step(r), _ok(r["mujoco"], "ns_cpu"), pin_step(r)[0]
         step_body.append([r["n"], _ns(_ok(r["warm"], "ns_cpu")), _ns(_ok(r["cold_rk4"], "ns_cpu")), _ns(mujoco),
-                          _ns(_ok(r["pin_inline"], "ns_cpu")), _ns(_ok(r["pin_lib"], "ns_cpu")),
+                          *[_ns(_ok(r[f"pin_{v}"], "ns_cpu")) for v in PIN_RUNS],
                           fmt(_ratio(mujoco, ours), ".2f"), fmt(_ratio(pin, ours), ".2f")])
-    step_table = format_table(["n", "lcg default", "lcg rk4-only", "MuJoCo", "Pin inline", "Pin lib", "MuJoCo/lcg",
-                               "Pin/lcg"], step_body)
+    step_table = format_table(["n", "lcg default", "lcg rk4-only", "MuJoCo",
+                               *[f"Pin {v.replace('_', ' ')}" for v in PIN_RUNS], "MuJoCo/lcg", "Pin/lcg"], step_body)
     growth_body = []
     for name, points in cost_series(rows).items():
         slope, count = growth(points)
@@ -692,7 +704,8 @@ def _sweep_lines(sweep: dict) -> str:
         return (f"{name}: {r['rate_cpu'] / 1e6:.4f} M member-steps/CPU-s ({r['members']} members x {r['n_steps']} "
                 f"steps, wall {r['wall']:.3f} s, CPU/wall {r['util']:.2f}, failed {r.get('failed', 0)})")
     ratio = _ratio(_ok(lcg, "rate_cpu"), _ok(mujoco, "rate_cpu"))
-    return (f"sweep n={n} (RK4, h = {H:g}, 1 thread, energy off; members: m1 x m{n} grid of bench_sweep; MuJoCo: "
+    return (f"sweep n={n} (RK4, h = {H:g}, 1 thread, energy off, lagcodegen built with methods=('rk4',) and its "
+            f"lane kernel; members: m1 x m{n} grid of bench_sweep; MuJoCo: "
             f"bench_sweep's rollout worker, members vary q1):\n    {part('lagcodegen sweep', lcg)}\n    "
             f"{part('MuJoCo rollout', mujoco)}\n    lagcodegen / MuJoCo per CPU-s: {fmt(ratio, '.2f')}")
 

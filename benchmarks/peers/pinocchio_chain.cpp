@@ -10,8 +10,9 @@
 // about -y turns -z towards +x: both sign conventions give the same equations in the angles,
 // the chain being symmetric under x -> -x).
 //
-// Usage:  pinocchio_chain N CHECK_STEPS TARGET_SECONDS REPEATS [INERTIA] < state
-//   state: 2N numbers, relative joint angles then relative joint speeds.
+// Usage:  pinocchio_chain N CHECK_STEPS TARGET_SECONDS REPEATS [INERTIA [CONVENTION]] < state
+//   state: 2N numbers, relative joint angles then relative joint speeds; CONVENTION: local
+//   (aba's default, Convention::LOCAL) or world (Convention::WORLD, Pinocchio 3's other ABA).
 // Prints one line of JSON: the state after CHECK_STEPS steps of h = 1e-3 from the given state,
 // then the timing: the step count is grown until one run from the given state lasts
 // TARGET_SECONDS / 4 (the warm-up), sized for TARGET_SECONDS, run REPEATS times; best wall
@@ -65,9 +66,11 @@ struct Rk4 {
         : model(m), data(m), tau(Vec::Zero(m.nv)), q2(m.nq), v2(m.nv), k1q(m.nv), k1v(m.nv), k2q(m.nv),
           k2v(m.nv), k3q(m.nv), k3v(m.nv), k4q(m.nv), k4v(m.nv) {}
 
+    pinocchio::Convention convention = pinocchio::Convention::LOCAL;
+
     void accel(const Vec &q, const Vec &v, Vec &out)
     {
-        out = pinocchio::aba(model, data, ConstRef(q), ConstRef(v), ConstRef(tau));
+        out = pinocchio::aba(model, data, ConstRef(q), ConstRef(v), ConstRef(tau), convention);
     }
 
     // n_steps classic RK4 steps in place; revolute (bounded) joints: q lives in R^n, so
@@ -115,7 +118,9 @@ int main(int argc, char **argv)
     const double target = std::atof(argv[3]);
     const int repeats = std::atoi(argv[4]);
     const double inertia = argc > 5 ? std::atof(argv[5]) : 1e-12;
-    if (n < 1 || check_steps < 0 || !(target > 0.0) || repeats < 1 || !(inertia >= 0.0)) {
+    const std::string convention = argc > 6 ? argv[6] : "local";
+    if (n < 1 || check_steps < 0 || !(target > 0.0) || repeats < 1 || !(inertia >= 0.0) ||
+        (convention != "local" && convention != "world")) {
         std::fprintf(stderr, "bad arguments\n");
         return 2;
     }
@@ -130,11 +135,13 @@ int main(int argc, char **argv)
     }
     const pinocchio::Model model = chain(n, inertia);
     Rk4 rk4(model);
+    rk4.convention = convention == "world" ? pinocchio::Convention::WORLD : pinocchio::Convention::LOCAL;
 
     Vec q = q0, v = v0;
     rk4.run(q, v, check_steps);
-    std::printf("{\"n\": %d, \"nq\": %d, \"nv\": %d, \"inertia\": %.17g, \"check_steps\": %ld, \"final\": [", n,
-                int(model.nq), int(model.nv), inertia, check_steps);
+    std::printf("{\"n\": %d, \"nq\": %d, \"nv\": %d, \"inertia\": %.17g, \"convention\": \"%s\", "
+                "\"check_steps\": %ld, \"final\": [",
+                n, int(model.nq), int(model.nv), inertia, convention.c_str(), check_steps);
     for (int i = 0; i < 2 * n; ++i) std::printf("%s%.17g", i ? ", " : "", i < n ? q[i] : v[i - n]);
     std::printf("]");
 
