@@ -25,10 +25,12 @@ a hard time-out per phase (``--timeout``, default 120 s) and a memory cap on its
                     and ::WORLD; the goals use the fastest of the four
 
 Peak memory: the parent samples the worker's whole process tree (the worker and every descendant,
-gcc included) every SAMPLE_SECONDS with psutil and sums their RSS; the column is the largest of
-that sum, the worker's ru_maxrss (RUSAGE_SELF) and its children's (RUSAGE_CHILDREN, the largest
-single child): a lower bound of the true peak (sampling can miss a spike). A compile stopped by
-the time-out shows the peak seen until then (``>=``).
+gcc included) every SAMPLE_SECONDS with psutil and sums their RSS; the column is the largest sum:
+a lower bound of the true peak (sampling can miss a spike). A compile stopped by the time-out
+shows the peak seen until then (``>=``). The worker's ru_maxrss (RUSAGE_SELF, RUSAGE_CHILDREN) go
+to the JSON only: Linux carries a process's high-water RSS across exec, so a child's figure starts
+at the RSS of the process that forked it (the run.py parent for the worker, the ~90 MiB Python
+worker for each gcc), not at the child's own use.
 
 Step times: ns per RK4 step of one trajectory (h = 1e-3) from x0 = `_common.sample_state(n)`,
 per CPU second of the (single-threaded) worker: the step count is grown until one run lasts a
@@ -429,11 +431,9 @@ def measure_worker(kind: str, args: list, timeouts: list, memory_cap: float) -> 
 
 
 def _peak(result: dict, phase: int) -> float | None:
-    """Peak memory of phase ``phase`` (MiB): tree samples and the worker's own ru_maxrss."""
+    """Peak summed RSS of the process tree in phase ``phase`` (MiB), from the parent's samples."""
     peaks = result.get("tree_peaks_mib", [])
-    values = ([peaks[phase]] if len(peaks) > phase else []) + \
-        [result[k] for k in ("maxrss_self_mib", "maxrss_children_mib") if k in result]
-    return max(values) if values else None
+    return peaks[phase] if len(peaks) > phase else None
 
 
 # -- measuring everything ------------------------------------------------------------------------
@@ -649,8 +649,8 @@ def format_report(result: dict, start_load: float) -> str:
         "seen until then ('>=')",
         "times: wall clock (perf_counter) of derive_equations / compile_model alone (imports and the Model's "
         "construction excluded); cold = empty cache dir, warm = second call in a new process, same dir",
-        f"peak MiB: max of the summed RSS of the worker and all its descendants (gcc included; psutil, every "
-        f"{SAMPLE_SECONDS * 1000:g} ms), its ru_maxrss and RUSAGE_CHILDREN ru_maxrss; interpreter and sympy included",
+        f"peak MiB: largest summed RSS of the worker and all its descendants during the compile (gcc included; "
+        f"psutil samples every {SAMPLE_SECONDS * 1000:g} ms: a lower bound); interpreter and sympy included",
         f"RK4 ns/step: one trajectory, h = {H:g}, x0 = sample_state(n), per CPU second of the worker; runs sized to "
         f"~{result['target']:g} s after a warm-up, best of {REPEAT}. lagcodegen: simulate(method='rk4', "
         "stride=steps) (the faster of its two builds); MuJoCo: Rollout(nthread=0).rollout of mjcf_chain "
