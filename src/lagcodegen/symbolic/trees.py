@@ -106,15 +106,27 @@ def bodies_model(model: Model) -> Model:
     """The same system on the points and bodies route: a frame and a body per link."""
     N, O = me.ReferenceFrame("N"), me.Point("O")
     frames, origins, bodies, points = {None: N}, {None: O}, [], {}
+    # (axis, angle) when a link's frame is the ground's turned about one fixed axis (a planar
+    # tree): its frame is then oriented from the ground by the summed angle, so that positions
+    # read l sin(q2) rather than nested turns l sin(q1) cos(q2 - q1) + ... (absolute angles sum
+    # to one coordinate); None once the turns are about different axes
+    turned = {None: (None, sp.S.Zero)}
     for link in model.tree:
         parent_frame, parent_origin = frames[link.parent], origins[link.parent]
         axis = _vector(link.axis, parent_frame)
         joint = parent_origin.locatenew(f"{link.name}_joint", _vector(link.offset, parent_frame))
         frame = me.ReferenceFrame(f"{link.name}_frame")
+        about = turned.get(link.parent)
         if link.joint == "revolute":
-            frame.orient_axis(parent_frame, axis, link.variable)
+            if about is not None and about[0] in (None, link.axis):
+                turned[link.name] = (link.axis, about[1] + link.variable)
+                frame.orient_axis(N, _vector(link.axis, N), turned[link.name][1])
+            else:
+                turned[link.name] = None
+                frame.orient_axis(parent_frame, axis, link.variable)
             origin = joint
         else:
+            turned[link.name] = about
             frame.orient_axis(parent_frame, axis, 0)
             origin = joint.locatenew(f"{link.name}_origin", link.variable * axis)
         frames[link.name], origins[link.name] = frame, origin
@@ -325,7 +337,7 @@ def derive_recursive(model: Model, choice: FormulationChoice | None = None) -> E
         IA.append(I)
 
     # pass 2: articulated inertias and bias forces, from the leaves to the ground
-    U, D, u_ = [None] * n, [None] * n, [None] * n
+    U, D, u_, D_inverse = [None] * n, [None] * n, [None] * n, [None] * n
     for i in reversed(range(n)):
         Ii = rec.symmetric(IA[i], f"IA{i}")
         pi = rec.vector(pA[i], f"pA{i}", forces)
@@ -333,9 +345,10 @@ def derive_recursive(model: Model, choice: FormulationChoice | None = None) -> E
         U[i] = rec.vector(_mv(Ii, S), f"U{i}", "012345")
         D[i] = rec.bind(_dot(S, U[i]), f"D_{i}")
         u_[i] = rec.bind(tau[i] - _dot(S, pi), f"u_{i}")
+        Dinv = rec.bind(1 / D[i], f"Dinv_{i}")
+        D_inverse[i] = Dinv
         if parent[i] is None:
             continue
-        Dinv = rec.bind(1 / D[i], f"Dinv_{i}")
         Ia = [[Ii[a][b] - U[i][a] * U[i][b] * Dinv for b in range(6)] for a in range(6)]
         axis = [k for k in range(6) if S[k] != 0]
         if len(axis) == 1:  # Ia S = 0 exactly: with S along a coordinate axis, its row and column vanish
@@ -355,7 +368,7 @@ def derive_recursive(model: Model, choice: FormulationChoice | None = None) -> E
     for i in range(n):
         a_in = _vadd(joints[i].motion(base if parent[i] is None else a[parent[i]]), c[i])
         a_in = rec.vector(a_in, f"a{i}_in", spatial)
-        theta_dd[i] = rec.bind((u_[i] - _dot(U[i], a_in)) / D[i], f"theta_dd_{i}")
+        theta_dd[i] = rec.bind((u_[i] - _dot(U[i], a_in)) * D_inverse[i], f"theta_dd_{i}")
         a[i] = rec.vector(_vadd(a_in, [e * theta_dd[i] for e in joints[i].S]), f"a{i}", spatial)
     accelerations = tuple(rec.bind(e, f"qdd_{j}") for j, e in enumerate(_solve(P, theta_dd)))
 
