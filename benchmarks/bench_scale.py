@@ -1,10 +1,12 @@
 """Suite `scale`: how lagcodegen's costs grow with the size of the model, against named peers.
 
-Model: the planar n-link pendulum chain of ``catalog.pendulum_chain(n)`` (point masses m_i = 1
-on massless rods l_i = 1, hinged at the origin, gravity 9.81; coordinates: absolute angles from
-the downward vertical), n = 2, 5, 10, 20, 50, 100 (``--scale-sizes``; ``--quick``: 2, 5, 10, 20).
+Model: the planar n-link pendulum chain of ``catalog.pendulum_chain(n, route="tree")`` (point
+masses m_i = 1 on massless rods l_i = 1, hinged at the origin, gravity 9.81; coordinates: absolute
+angles from the downward vertical; stated as a kinematic tree, so that compile_model's cost model
+picks the closed form or the recursive one and the report names it), n = 2, 5, 10, 20, 50, 100
+(``--scale-sizes``; ``--quick``: 2, 5, 10, 20).
 lagcodegen's side is `lagcodegen_chain` with `COMPILE_OPTIONS` / `DERIVE_OPTIONS` (or
-``--scale-compile-options JSON``): change them there when compile_model learns a formulation.
+``--scale-compile-options JSON``), e.g. ``{"formulation": "recursive"}`` to force one formulation.
 
 Per n, each measurement in its own fresh process (imports and model construction untimed), under
 a hard time-out per phase (``--timeout``, default 120 s) and a memory cap on its process tree
@@ -109,7 +111,7 @@ def lagcodegen_chain(n: int):
     """The Model lagcodegen compiles for the n-link chain."""
     from lagcodegen.catalog import pendulum_chain
 
-    return pendulum_chain(n)
+    return pendulum_chain(n, route="tree")
 
 
 # -- worker side (fresh process each) ------------------------------------------------------------
@@ -168,6 +170,7 @@ def worker_compile(n: int, cache_dir: str, options: dict, measure: bool, target:
         system = compile_model(model, cache_dir=cache_dir, **{**COMPILE_OPTIONS, **options})
         seconds = time.perf_counter() - start
     emit(phase="compiled", seconds=seconds, methods=list(system.layout.methods),
+         formulation=system.layout.formulation,
          warnings=sorted({f"{type(w.message).__name__}: {str(w.message)[:200]}" for w in caught}), **_rusage())
     if not measure:
         return
@@ -641,7 +644,8 @@ def format_report(result: dict, start_load: float) -> str:
         f"scale suite: lagcodegen {lagcodegen.__version__}, {peer_versions('mujoco', 'pin', 'cmeel-eigen', 'psutil')}, "
         f"Python {platform.python_version()}, {compiler_version()}; {os.cpu_count()} logical CPUs, 1-min load "
         f"{start_load:.2f} at the start",
-        "model: planar n-link chain, point masses m_i = 1 on massless rods l_i = 1, g = 9.81 (catalog.pendulum_chain(n)); "
+        "model: planar n-link chain, point masses m_i = 1 on massless rods l_i = 1, g = 9.81 "
+        "(catalog.pendulum_chain(n, route='tree')); "
         f"lagcodegen options: compile_model {result['compile_options'] or 'defaults'}, derive_equations "
         f"{result['derive_options'] or 'defaults'}",
         f"each cell a fresh process; time-out {timeout:g} s per phase (imports {IMPORT_TIMEOUT:g} s, untimed); "
@@ -663,10 +667,11 @@ def format_report(result: dict, start_load: float) -> str:
     ]
     compile_body = []
     for r in rows:
-        compile_body.append([r["n"], _seconds_cell(r["derive"], timeout, cap), _seconds_cell(r["cold"], timeout, cap),
+        compile_body.append([r["n"], r["cold"].get("formulation", "-").split(" (")[0],
+                             _seconds_cell(r["derive"], timeout, cap), _seconds_cell(r["cold"], timeout, cap),
                              _memory_cell(r["cold"], 1), _seconds_cell(r["warm"], timeout, cap),
                              _seconds_cell(r["cold_rk4"], timeout, cap), _memory_cell(r["cold_rk4"], 1)])
-    compile_table = format_table(["n", "derive [s]", "cold [s]", "cold peak [MiB]", "warm [s]", "cold rk4-only [s]",
+    compile_table = format_table(["n", "formulation", "derive [s]", "cold [s]", "cold peak [MiB]", "warm [s]", "cold rk4-only [s]",
                                   "rk4-only peak [MiB]"], compile_body)
     step_body = []
     for r in rows:
@@ -676,6 +681,8 @@ def format_report(result: dict, start_load: float) -> str:
                           fmt(_ratio(mujoco, ours), ".2f"), fmt(_ratio(pin, ours), ".2f")])
     step_table = format_table(["n", "lcg default", "lcg rk4-only", "MuJoCo",
                                *[f"Pin {v.replace('_', ' ')}" for v in PIN_RUNS], "MuJoCo/lcg", "Pin/lcg"], step_body)
+    choices = [f"    n={r['n']}: {r['cold']['formulation']}" for r in rows if "formulation" in r["cold"]]
+    compile_table += "\nformulation chosen by compile_model (its report line):\n" + "\n".join(choices)
     growth_body = []
     for name, points in cost_series(rows).items():
         slope, count = growth(points)
