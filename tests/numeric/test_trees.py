@@ -220,6 +220,18 @@ def test_the_cost_model_picks_closed_for_small_and_recursive_for_big_trees():
 def test_the_header_says_which_formulation(tmp_path):
     system = _compiled(catalog.pendulum_chain(20, route="tree"), tmp_path)
     assert "Formulation: recursive (chosen by cost for 20 links" in system.sources.header
+    report = system.report()
+    assert "formulation: recursive (chosen by cost for 20 links" in report
+    assert f"C source: {len(system.sources.source)} bytes" in report and "estimated build:" in report
+    assert "compiled in" in report  # a fresh cache dir: this process compiled it
+
+
+def test_the_report_says_a_cache_hit(tmp_path, monkeypatch):
+    from lagcodegen.native import build
+
+    _compiled(catalog.pendulum_chain(3, route="tree"), tmp_path)
+    monkeypatch.setattr(build, "_MEMO", {})  # as in a new process: the disk entry serves
+    assert "loaded from the cache" in _compiled(catalog.pendulum_chain(3, route="tree"), tmp_path).report()
 
 
 def test_a_warm_compile_skips_the_derivation_and_a_damaged_model_entry_does_not(tmp_path, monkeypatch):

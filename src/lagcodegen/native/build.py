@@ -23,6 +23,7 @@ import subprocess
 import sys
 import sysconfig
 import threading
+import time
 import types
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -49,7 +50,7 @@ _INSTALL_HINT = ("install gcc, e.g. apt-get install gcc / build-essential, "
 _EXT_SUFFIX = sysconfig.get_config_var("EXT_SUFFIX") or ".so"
 _FILE_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]*")
 _LOCK = threading.RLock()  # one build at a time per process: cffi chdirs while compiling
-_MEMO: dict[tuple[str, str], tuple[Any, Any, Path]] = {}  # (cache dir, key) -> (ffi, lib, .so)
+_MEMO: dict[tuple[str, str], tuple[Any, Any, Path, float | None]] = {}  # (cache dir, key) -> (ffi, lib, .so, build s)
 _LOADED: dict[str, types.ModuleType] = {}  # .so path -> module: checked and imported once per process
 
 
@@ -71,6 +72,28 @@ class CompiledSystem:
     #: (sources, cache_dir, extra_compile_args) of the same model with the lane sweep kernel,
     #: built on first use by `lane_variant` (it doubles the compile time, and only sweeps need it)
     lane_build: tuple | None = field(default=None, repr=False, compare=False)
+    #: seconds this process spent compiling the module (None: loaded from the cache) and the
+    #: estimate made before (``build_cost.estimate_build_cost``; None when not given)
+    build_seconds: float | None = field(default=None, repr=False, compare=False)
+    cost: BuildCost | None = field(default=None, repr=False, compare=False)
+
+    def report(self) -> str:
+        """What was built and how: the formulation (trees: which one and the operation estimate
+        that chose it), the C source size, the estimated and the measured compile time."""
+        layout = self.layout
+        lines = [f"model {layout.model!r}: {len(layout.coordinates)} coordinates, "
+                 f"{len(layout.functions)} C functions, methods {', '.join(layout.methods) or 'none'}"]
+        if layout.formulation:
+            lines.append(f"formulation: {layout.formulation}")
+        if self.sources is not None:
+            lines.append(f"C source: {len(self.sources.source)} bytes ({self.sources.source_name})")
+        if self.cost is not None:
+            ops = sum(count for _, count in self.cost.ops)
+            lines.append(f"estimated build: {self.cost.seconds:.1f} s, {self.cost.megabytes:.0f} MB of compiler "
+                         f"memory ({ops} operations after CSE)")
+        lines.append(f"compiled in {self.build_seconds:.2f} s" if self.build_seconds is not None
+                     else f"loaded from the cache ({self.path})")
+        return "\n".join(lines)
 
     def __reduce__(self):
         return (_restore, (self.key, str(self.path), self.module_name, self.layout, self.sources, self.lane_build))
@@ -237,8 +260,9 @@ def build_module(sources: CSources, *, cache_dir=None, extra_compile_args=(), co
                 root = _fallback(root, exc, cache_dir, module_name)
                 if (str(root), key) not in _MEMO:
                     _MEMO[str(root), key] = _fetch(job, root)
-        ffi, lib, so_path = _MEMO[str(root), key]
-    return CompiledSystem(ffi, lib, key, so_path, module_name, sources.layout, sources)
+        ffi, lib, so_path, seconds = _MEMO[str(root), key]
+    return CompiledSystem(ffi, lib, key, so_path, module_name, sources.layout, sources,
+                          build_seconds=seconds, cost=cost)
 
 
 def _fallback(root: Path, exc: OSError, explicit, module_name: str) -> Path:
@@ -251,8 +275,10 @@ def _fallback(root: Path, exc: OSError, explicit, module_name: str) -> Path:
 
 
 def _fetch(job: _Job, root: Path):
-    """Load the entry for ``job.key``, building it if missing or corrupt; (ffi, lib, .so path)."""
+    """Load the entry for ``job.key``, building it if missing or corrupt; (ffi, lib, .so path,
+    seconds spent compiling or None)."""
     entry, so_name = root / job.module_name, job.so_name
+    seconds = None
     for attempt in range(2):
         problem = None if str(entry / so_name) in _LOADED else cache.entry_problem(entry, job.key, so_name)
         if problem is not None:
@@ -260,10 +286,12 @@ def _fetch(job: _Job, root: Path):
                 cache.evict_entry(entry)
             if job.cost is not None:
                 warn_if_expensive(job.cost)
+            start = time.perf_counter()
             _compile_entry(job, root, entry)
+            seconds = time.perf_counter() - start
         try:
             module = _import(str(entry / so_name), job.module_name)
-            return module.ffi, module.lib, entry / so_name
+            return module.ffi, module.lib, entry / so_name, seconds
         except ImportError as exc:  # e.g. a corrupt .so whose checksum was rewritten
             if attempt == 1 or problem is not None:
                 kept = cache.keep_failed(entry, root, job.module_name)
