@@ -40,7 +40,7 @@ def pendulum(compiled_example):
     ({"trajectories": "yes"}, TypeError, r"^trajectories must be True or False"),
     ({"track_energy": 1}, TypeError, r"^track_energy must be True or False"),
     ({"project": None}, TypeError, r"^project must be True or False"),
-    ({"project": True}, ValueError, r"project needs holonomic constraints; model 'double_pendulum'"),
+    ({"project": True}, ValueError, r"project=True needs constraints \(holonomic or on the velocities\); model 'double_pendulum'"),
     # the time grid and method, as in simulate
     ({"h": None}, TypeError, r"^h must be a real number"),
     ({"h": 1e-320}, ValueError, r"step h = 9.99989e-321 is inf steps"),

@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 import sympy as sp
 import sympy.physics.mechanics as me
+from scipy.integrate import trapezoid
 from test_chaplygin_sleigh import VALUES, closed_form, sleigh
 from test_rolling_disc import CRITICAL, lean_period, rolling_disc, sympy_upright_a
 
@@ -95,16 +96,50 @@ def test_a_singular_dependent_block_at_the_start_is_named(sleighs):
         dependent_speeds(sleighs["x"], [0.0, 0.0, 0.0, 0.0, 1.0])
 
 
-def test_a_start_on_the_singular_heading_stops_with_a_status(sleighs):
-    """y' dependent at theta = pi/2: cos(pi/2) is 6e-17 in binary, so A_D is not exactly singular and
-    the start passes; the reduced mass matrix is then ~1e32 times its usual size and the run stops at
-    once with a singular status instead of carrying NaN or a wrong OK."""
+def test_a_start_on_the_singular_heading_is_named(sleighs):
+    """y' dependent at theta = pi/2: cos(pi/2) is 6e-17 in binary, not exactly 0, but 6e-17 of the
+    constraint row's largest entry (sin(pi/2) = 1): singular to the rank tolerance, so the start is
+    refused by name as for an exactly singular block, instead of running on a reduced mass matrix
+    ~1e32 times its usual size."""
+    with pytest.raises(ValueError, match=r"dependent speeds y_d at t = 0\.0, .*lost rank"):
+        simulate(sleighs["y"], {"x": 0.0, "y": 0.0, "theta": np.pi / 2, "x_d": 0.0, "theta_d": 1.0},
+                 t_end=1.0, h=1e-3)
+    from lagcodegen.statics.state_space import linearize_state
+
+    with pytest.raises(ValueError, match=r"do not fix the dependent speeds y_d at x0 = .*lost rank"):
+        linearize_state(derive_equations(sleigh(dependent_speeds=[Y])), [0.0, 0.0, np.pi / 2, 0.0, 1.0], values={})
+
+
+def test_a_nearly_singular_dependent_block_is_judged_against_the_whole_constraint_row(sleighs):
+    """y' dependent, A = [-sin(theta), cos(theta)] (x', y'): at theta = pi/2 - 1e-14 the block
+    A_D = cos(theta) is 1e-14 of the row's largest entry, below the rank tolerance 1e-12; measured
+    against A_D alone (a 1 x 1 block is its own largest entry) it passed, and y' = x' tan(theta)
+    came out as 1e14 x'. One step further from the pole it is regular and equals the hand formula."""
+    near = np.pi / 2 - 1e-14
+    with pytest.raises(ValueError, match="lost rank"):
+        dependent_speeds(sleighs["y"], [0.0, 0.0, near, 1.0, 0.0])
+    theta = np.pi / 2 - 1e-6
+    solved = dependent_speeds(sleighs["y"], [0.0, 0.0, theta, 1.0, 0.0])[0]
+    np.testing.assert_allclose(solved, np.tan(theta), rtol=1e-9)
+
+
+@pytest.mark.parametrize("theta0, w0, h", [(1.40, 5.0, 0.05), (1.46, 10.0, 0.05), (1.50, 20.0, 0.02)])
+def test_a_step_across_the_singular_heading_is_not_ok(sleighs, theta0, w0, h):
+    """y' dependent: cos(theta) = 0 at theta = pi/2. Started spinning (v0 = 0), the heading passes
+    pi/2 inside the first step by the closed form (test_chaplygin_sleigh.closed_form, w integrated),
+    and no stage lands near it: before the monitor watched det(A_D), these runs went on with status
+    OK and w wrong by 0.8-21 rad/s. The sign change of det(A_D) = cos(theta) between the two states
+    stops the run with LCG_SINGULAR_CONSTRAINTS."""
+    grid = np.linspace(0.0, h, 2001)
+    _, w_exact = closed_form(grid, 0.0, w0)
+    theta_h = theta0 + trapezoid(w_exact, grid)
+    assert theta0 < np.pi / 2 < theta_h  # the first step crosses the singular heading
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
-        run = simulate(sleighs["y"], {"x": 0.0, "y": 0.0, "theta": np.pi / 2, "x_d": 0.0, "theta_d": 1.0},
-                       t_end=1.0, h=1e-3)
-    assert run.status in (Status.SINGULAR_CONSTRAINTS, Status.SINGULAR_MASS_MATRIX), run.status
-    assert run.failed_step <= 2 and np.all(np.isfinite(run.x))
+        run = simulate(sleighs["y"], {"x": 0.0, "y": 0.0, "theta": theta0, "x_d": 0.0, "theta_d": w0},
+                       t_end=1.0, h=h)
+    assert run.status == Status.SINGULAR_CONSTRAINTS, run.status
+    assert run.failed_step == 2
 
 
 def test_a_dependent_speed_is_not_a_state_variable(sleighs):
@@ -120,7 +155,8 @@ def test_what_elimination_does_not_offer_is_refused_by_name(sleighs):
         compile_model(sleigh(dependent_speeds=[Y]), outputs=("rhs", "jacobian"), methods=("rk4",))
     with pytest.raises(KernelError, match="eliminates its dependent speeds"):
         compile_model(sleigh(dependent_speeds=[Y]), outputs=("rhs", "multipliers"), methods=("rk4",))
-    with pytest.raises(ValueError, match="project need"):
+    with pytest.raises(ValueError, match=r"project=True needs constraints kept with multipliers; model .* eliminates "
+                       r"its velocity constraints \(dependent speeds y_d\)"):
         simulate(sleighs["y"], {"x": 0.0, "y": 0.0, "theta": 0.0}, t_end=0.1, h=1e-3, project=True)
 
 
@@ -197,6 +233,13 @@ def test_the_linearization_about_upright_rolling_matches_sympys(discs, factor):
     linear = linearize_state(eom, state, values={})
     assert linear.basis.shape == (10, 8)
     np.testing.assert_allclose(significant(linear.eigenvalues()), significant(theirs), atol=1e-8)
+    # the state as simulate takes it, (q, independent speeds): the constraints complete x', y'
+    reduced = {k: v for k, v in state.items() if k not in ("x_d", "y_d")}
+    in_order = [reduced[name] for name in ("x", "y", "psi", "theta", "phi", "psi_d", "theta_d", "phi_d")]
+    for given in (reduced, in_order):
+        again = linearize_state(eom, given, values={})
+        np.testing.assert_allclose(again.x0, linear.x0, atol=1e-15)
+        np.testing.assert_allclose(again.A, linear.A, atol=1e-12)
 
 
 def test_the_eliminated_disc_moves_as_the_multipliers_disc(discs):

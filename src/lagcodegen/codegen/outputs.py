@@ -56,19 +56,28 @@ def _constraint_rows(eom: EquationsOfMotion, with_bias: bool) -> list:
 
 
 def _dependent_rows(eom: EquationsOfMotion) -> list:
-    """("AD", i, j) = A[i, p + j], the constraint Jacobian in the dependent speeds, and ("BI", i, 0)
-    = the rest of the row, sum_k<p A[i, k] u_k + b_i (p independent speeds): A_D u_dep = -BI."""
+    """("AD", i, j) = A[i, p + j], the constraint Jacobian in the dependent speeds, ("BI", i, 0)
+    = the rest of the row, sum_k<p A[i, k] u_k + b_i (p independent speeds): A_D u_dep = -BI; and
+    ("AI", i, k) = A[i, k], k < p, the scale of the rank test (`_dependent_system_lines`)."""
     A, u, p = eom.constraint_jacobian, eom.u, eom.n_u - eom.n_dependent
-    rows = [(("AD", i, j), A[i, p + j]) for i in range(eom.m) for j in range(eom.n_dependent)]
+    rows = _constraint_blocks(eom)
     return rows + [(("BI", i, 0), sp.Add(*[A[i, k] * u[k] for k in range(p)]) + eom.constraint_rate[i])
                    for i in range(eom.m)]
+
+
+def _constraint_blocks(eom: EquationsOfMotion) -> list:
+    """("AD", i, j) = A[i, p + j] and ("AI", i, k) = A[i, k]: the constraint Jacobian's dependent and
+    independent columns (p independent speeds)."""
+    A, p = eom.constraint_jacobian, eom.n_u - eom.n_dependent
+    return [(("AD", i, j), A[i, p + j]) for i in range(eom.m) for j in range(eom.n_dependent)] + \
+        [(("AI", i, k), A[i, k]) for i in range(eom.m) for k in range(p)]
 
 
 def _dependent_acceleration_rows(eom: EquationsOfMotion, a) -> list:
     """("AD", i, j) = A[i, p + j] and ("GB", i, 0) = sum_k<p A[i, k] a_k - gamma_i: the dependent
     accelerations solve A_D ud_dep = -GB (A ud = gamma differentiated from the constraints)."""
     A, p = eom.constraint_jacobian, eom.n_u - eom.n_dependent
-    rows = [(("AD", i, j), A[i, p + j]) for i in range(eom.m) for j in range(eom.n_dependent)]
+    rows = _constraint_blocks(eom)
     return rows + [(("GB", i, 0), sp.Add(*[A[i, k] * a[k] for k in range(p)]) - eom.constraint_bias[i])
                    for i in range(eom.m)]
 
@@ -193,7 +202,8 @@ def _needs_constraints(output: str) -> Callable[[EquationsOfMotion], str | None]
         if eom.n_dependent:
             return (f"output {output!r} needs constraints with multipliers; model {eom.name!r} eliminates its "
                     "dependent speeds (Model(..., formulation='multipliers') keeps them)")
-        return None if eom.m else f"output {output!r} needs holonomic constraints; model {eom.name!r} has none"
+        return None if eom.m else (f"output {output!r} needs constraints (holonomic or on the velocities); "
+                                   f"model {eom.name!r} has none")
     return obstacle
 
 
@@ -410,7 +420,7 @@ def _dependent_speeds_c(w: KernelWriter, kernel) -> dict:
     m, real, prefix = w.n_dependent, w.real, w.prefix
     names = ", ".join(s.name for s in w.system.u_dependent)
     body = w.head(kernel) + _dependent_system_lines(w, kernel, "BI")
-    body += [f"if ({prefix}_dense_solve(AD, b, {m}, 1)) {{",
+    body += [f"if ({prefix}_dense_solve(AD, b, {m}, 1, scale, 0)) {{",
              f"    for (i = 0; i < {m}; ++i) u_dep[i] = b[i];",
              f"    return {prefix}_finite_result(LCG_OK, u_dep, {m});",
              "}",
@@ -425,16 +435,23 @@ def _dependent_speeds_c(w: KernelWriter, kernel) -> dict:
 def _dependent_system_lines(w: KernelWriter, kernel, rest: str) -> list:
     """AD (the constraint Jacobian in the dependent speeds, m x m) and b = -(the ``rest`` rows): the
     system A_D v = b that the dependent speeds and their accelerations both solve."""
-    m = w.n_dependent
-    lines = [f"{w.real} AD[{m * m}], b[{m}];", "int i;", "/* A_D and the right-hand side */"]
+    m, real = w.n_dependent, w.real
+    fabs = "fabsf" if real == "float" else "fabs"
+    lines = [f"{real} AD[{m * m}], b[{m}], scale = {literal(0, real)};", "int i;", "/* A_D and the right-hand side */"]
     lines += [f"AD[{i * m + j}] = {w.expr(e, f'A_D[{i}][{j}]')};" for (i, j), e in results(kernel, "AD").items()]
-    return lines + [f"b[{i}] = -({w.expr(e, f'row {i}')});" for (i, _), e in results(kernel, rest).items()]
+    lines += [f"b[{i}] = -({w.expr(e, f'row {i}')});" for (i, _), e in results(kernel, rest).items()]
+    # the rank test is relative to the whole constraint Jacobian: A_D's own largest entry would
+    # make a 1 x 1 A_D (cos(theta) of a sleigh) regular until it is exactly 0
+    lines.append("/* the scale of the rank test: the largest |entry| of the independent columns of A */")
+    lines += [f"if ({fabs}({w.expr(e, f'A[{i}][{k}]')}) > scale) scale = {fabs}({w.expr(e, f'A[{i}][{k}]')});"
+              for (i, k), e in results(kernel, "AI").items() if e != 0]
+    return lines
 
 
 def _dependent_accelerations_c(w: KernelWriter, kernel) -> dict:
     m, p, real, prefix = w.n_dependent, w.n_u, w.real, w.prefix
     body = w.head(kernel, on_singular="return dep_status;") + _dependent_system_lines(w, kernel, "GB")
-    body += [f"if (!{prefix}_dense_solve(AD, b, {m}, 1)) return LCG_SINGULAR_CONSTRAINTS;",
+    body += [f"if (!{prefix}_dense_solve(AD, b, {m}, 1, scale, 0)) return LCG_SINGULAR_CONSTRAINTS;",
              f"for (i = 0; i < {m}; ++i) ud[{p} + i] = b[i];",
              f"return {prefix}_finite_result(LCG_OK, ud, {p + m});"]
     return record("int", f"{prefix}_dependent_accelerations", f"{w.arguments}, {real} *ud",
@@ -455,7 +472,7 @@ def _reactions_c(w: KernelWriter, kernel) -> dict:
     body += [f"RJ[{i * k + j}] = {w.expr(e, f'd aux[{i}]/d {forces[j]}')};"
              for (i, j), e in results(kernel, "RJ").items()]
     body += [f"out[{i}] = -({w.expr(e, f'aux[{i}]')});" for (i, _), e in results(kernel, "RB").items()]
-    body += [f"if (!{prefix}_dense_solve(RJ, out, {k}, 1)) return LCG_SINGULAR_CONSTRAINTS;",
+    body += [f"if (!{prefix}_dense_solve(RJ, out, {k}, 1, {literal(0, real)}, 0)) return LCG_SINGULAR_CONSTRAINTS;",
              f"return {prefix}_finite_result(LCG_OK, out, {k});"]
     names = ", ".join(s.name for s in forces)
     return record("int", f"{prefix}_reactions", f"{w.driven_arguments}, {real} *out",
@@ -480,7 +497,7 @@ def _configuration_project_c(w: KernelWriter, kernel) -> dict:
             "    if (!isfinite(size)) return LCG_NONFINITE_STATE;",
             f"    if (size <= {tolerance}) return LCG_OK;",
             "    if (iteration == 10) return LCG_NEWTON_FAILED;",
-            f"    if (!{prefix}_dense_solve(HJ, H, {k}, 1)) return LCG_SINGULAR_CONSTRAINTS;"]
+            f"    if (!{prefix}_dense_solve(HJ, H, {k}, 1, {literal(0, w.real)}, 0)) return LCG_SINGULAR_CONSTRAINTS;"]
     body += [f"    x[{d}] -= H[{j}];" for j, d in enumerate(dependent)]
     body += ["}", "return LCG_NEWTON_FAILED;"]
     names = ", ".join(w.system.q[d].name for d in dependent)
@@ -685,11 +702,13 @@ def support_functions(w: KernelWriter) -> list:
 def _dense_solve_function(w: KernelWriter) -> dict:
     """LU with partial pivoting of a small dense A (n x n) against ``cols`` right-hand sides B
     (row-major n x cols), both overwritten (B by the solution); 0 when a pivot is not above
-    rank_tolerance times the largest |entry| of A (the dependent speeds' Jacobian lost rank)."""
+    rank_tolerance times the larger of ``scale`` and the largest |entry| of A (the dependent
+    speeds' Jacobian lost rank). det (or NULL) receives det(A): its sign change between two states
+    is a singular A crossed (the drivers' singularity monitor)."""
     real, zero = w.real, literal(0, w.real)
     tolerance = literal(1e-12 if real == "double" else 1e-6, real)
     fabs = "fabsf" if real == "float" else "fabs"
-    body = [f"{real} scale = {zero};", "int i, j, k, c;",
+    body = [f"{real} product = {literal(1, real)};", "int i, j, k, c;",
             "for (i = 0; i < n * n; ++i) {",
             f"    if ({fabs}(A[i]) > scale) scale = {fabs}(A[i]);",
             "}",
@@ -701,6 +720,7 @@ def _dense_solve_function(w: KernelWriter) -> dict:
             "    }",
             f"    if (!({fabs}(A[pivot * n + k]) > {tolerance} * scale)) return 0;",
             "    if (pivot != k) {",
+            "        product = -product;",
             "        for (j = 0; j < n; ++j) {",
             f"            const {real} swap = A[k * n + j];",
             "            A[k * n + j] = A[pivot * n + j];",
@@ -712,6 +732,7 @@ def _dense_solve_function(w: KernelWriter) -> dict:
             "            B[pivot * cols + c] = swap;",
             "        }",
             "    }",
+            "    product *= A[k * n + k];",
             "    for (i = k + 1; i < n; ++i) {",
             f"        const {real} factor = A[i * n + k] / A[k * n + k];",
             "        for (j = k + 1; j < n; ++j) A[i * n + j] -= factor * A[k * n + j];",
@@ -725,9 +746,12 @@ def _dense_solve_function(w: KernelWriter) -> dict:
             "        B[k * cols + c] = acc / A[k * n + k];",
             "    }",
             "}",
+            "if (det) *det = product;",
             "return 1;"]
-    return record("int", f"{w.prefix}_dense_solve", f"{real} *A, {real} *B, int n, int cols",
-                  "Solve A X = B in place (LU, partial pivoting); 0 when A is singular to rank_tolerance.",
+    return record("int", f"{w.prefix}_dense_solve", f"{real} *A, {real} *B, int n, int cols, {real} scale, "
+                  f"{real} *det",
+                  "Solve A X = B in place (LU, partial pivoting); 0 when A is singular to rank_tolerance "
+                  "relative to the larger of scale and A's largest |entry|; det (or NULL) receives det(A).",
                   body, static=True)
 
 
@@ -739,14 +763,20 @@ def _eliminated_solve_function(w: KernelWriter) -> dict:
     real, prefix, zero = w.real, w.prefix, literal(0, w.real)
     n, m, p = w.n_m, w.n_dependent, w.n_u
     W = p + 1
-    body = [f"{real} AD[{m * m}], X[{m * W}], MC[{n * p}], Mr[{p * p}], Fr[{p}], rest[{n}];", "int i, j, k;",
-            "/* X = A_D^-1 [-A_I, gamma]: its first p columns are -A_D^-1 A_I, the last g_D */",
+    fabs = "fabsf" if real == "float" else "fabs"
+    body = [f"{real} AD[{m * m}], X[{m * W}], MC[{n * p}], Mr[{p * p}], Fr[{p}], rest[{n}], scale = {zero}, det;",
+            "int i, j, k;",
+            "/* X = A_D^-1 [-A_I, gamma]: its first p columns are -A_D^-1 A_I, the last g_D; the rank",
+            " * test of A_D is relative to the largest |entry| of A */",
             f"for (i = 0; i < {m}; ++i) {{",
             f"    for (j = 0; j < {m}; ++j) AD[i * {m} + j] = A[i * {n} + {p} + j];",
-            f"    for (j = 0; j < {p}; ++j) X[i * {W} + j] = -A[i * {n} + j];",
+            f"    for (j = 0; j < {p}; ++j) {{",
+            f"        X[i * {W} + j] = -A[i * {n} + j];",
+            f"        if ({fabs}(A[i * {n} + j]) > scale) scale = {fabs}(A[i * {n} + j]);",
+            "    }",
             f"    X[i * {W} + {p}] = gamma[i];",
             "}",
-            f"if (!{prefix}_dense_solve(AD, X, {m}, {W})) return LCG_SINGULAR_CONSTRAINTS;",
+            f"if (!{prefix}_dense_solve(AD, X, {m}, {W}, scale, &det)) return LCG_SINGULAR_CONSTRAINTS;",
             "/* rest = F - M g; MC = M C */",
             f"for (i = 0; i < {n}; ++i) {{",
             f"    {real} acc = F[i];",
@@ -771,8 +801,9 @@ def _eliminated_solve_function(w: KernelWriter) -> dict:
             "}",
             f"i = {prefix}_spd_factor(Mr, {p}, {zero});",
             "if (i != 1) return i == 0 ? LCG_SINGULAR_MASS_MATRIX : LCG_NONFINITE_STATE;",
-            "if (gauge) {  /* pivots of the reduced M, for the drivers' singularity monitor */",
+            "if (gauge) {  /* pivots of the reduced M and det(A_D), for the drivers' singularity monitor */",
             f"    for (i = 0; i < {p}; ++i) gauge[i] = Mr[i * {p} + i] * Mr[i * {p} + i];",
+            f"    gauge[{p}] = det;",
             "}",
             f"{prefix}_spd_solve(Mr, Fr, {p});",
             f"for (i = 0; i < {p}; ++i) ud[i] = Fr[i];",
@@ -782,7 +813,7 @@ def _eliminated_solve_function(w: KernelWriter) -> dict:
                   f"{real} *gauge",
                   f"ud of the {p} independent speeds from M ({n} x {n}), F, the constraint Jacobian A "
                   f"({m} x {n}) and gamma (A ud = gamma); gauge (or NULL) receives the {p} pivots of "
-                  "C^T M C.", body, static=True)
+                  "C^T M C, then det(A_D).", body, static=True)
 
 
 def _finite_result_function(w: KernelWriter) -> dict:

@@ -58,7 +58,8 @@ def stepper_context(system, names, real: str, methods: list) -> dict:
                "pivot_jump": _literal(PIVOT_JUMP, real), "pivot_collapse": _literal(PIVOT_COLLAPSE[real], real),
                "pivot_jump_text": f"{PIVOT_JUMP:g}",
                "pivot_collapse_text": f"{PIVOT_COLLAPSE[real]:.0e}".replace("e-0", "e-"),
-               "n_pivots": n + system.n_constraints, "step_jacobians": []} | input_context(system, names, real)
+               "n_pivots": n + system.n_constraints, "has_dependent": bool(system.u_dependent),
+               "step_jacobians": []} | input_context(system, names, real)
     if not methods:
         return context
     if "rhs" not in system.outputs and "accel" not in system.outputs:
@@ -200,9 +201,10 @@ def _exported_call(prefix: str, name: str, driven: bool) -> str:
 
 def gauge_size(system) -> int:
     """Values of one singularity gauge: the n pivots of M (n speeds), then (constrained) the m pivots
-    of A M^-1 A^T and the m x n constraint Jacobian A (its orientation between steps)."""
+    of A M^-1 A^T and the m x n constraint Jacobian A (its orientation between steps), or (dependent
+    speeds eliminated) det(A_D), whose sign changes where the step crossed a singular A_D."""
     n, m = len(system.u), system.n_constraints
-    return n + m + m * n
+    return n + m + m * n + (1 if system.u_dependent else 0)
 
 
 def _tableau_record(scheme, real: str) -> dict:

@@ -161,3 +161,15 @@ def format_bytes(n: float) -> str:
 
 class OutputTooLargeError(ValueError):
     """The samples a run would keep do not fit in memory; the message gives the size and a stride."""
+
+
+def missing_constraints(layout, asked) -> str:
+    """Why the options ``asked`` (project, residuals, multipliers) do not apply to a model without
+    constraints kept with multipliers: it has none, or it eliminated its velocity constraints."""
+    need = f"{', '.join(f'{name}=True' for name in asked)} need{'s' if len(asked) == 1 else ''}"
+    if layout.dependent_speeds:
+        return (f"{need} constraints kept with multipliers; model {layout.model!r} eliminates its velocity "
+                f"constraints (dependent speeds {', '.join(layout.dependent_speeds)}), which then hold to "
+                "round-off without projection and have no multipliers; Model(..., formulation='multipliers') "
+                "keeps them")
+    return f"{need} constraints (holonomic or on the velocities); model {layout.model!r} has none"

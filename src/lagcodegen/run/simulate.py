@@ -20,6 +20,7 @@ from .arguments import (  # noqa: F401
     check_output_size,
     flag,
     method_name,
+    missing_constraints,
     output_bytes,
     positive_int,
     real_number,
@@ -349,7 +350,7 @@ def _outputs(system: CompiledSystem, **requested) -> dict:
     asked = [name for name in ("project", "residuals", "multipliers") if outputs[name]
              and not (name == "project" and projects)]
     if asked and not layout.n_constraints:
-        raise ValueError(f"{', '.join(asked)} need holonomic constraints; model {layout.model!r} has none")
+        raise ValueError(missing_constraints(layout, asked))
     for name, output in NEEDED_OUTPUT.items():
         if outputs.get(name) and f"{layout.prefix}_{name}" not in layout.functions:
             raise ValueError(f"{name}=True: model {layout.model!r} was compiled without the {output!r} output "

@@ -29,7 +29,16 @@ import numpy as np
 
 from ..native.build import CompiledSystem
 from ..status import CHUNK_FAILED, NOT_RUN, SWEEP_STATUS_NAMES, Status  # noqa: F401 (re-exported)
-from .arguments import check_memory, check_output_size, flag, output_bytes, positive_int, step_count, stride_within
+from .arguments import (
+    check_memory,
+    check_output_size,
+    flag,
+    missing_constraints,
+    output_bytes,
+    positive_int,
+    step_count,
+    stride_within,
+)
 from .inputs import hold_code
 from .simulate import c_pointer, compiled_method, real_dtype, work_size
 from .sweep_members import (  # noqa: F401
@@ -205,8 +214,8 @@ def sweep(system: CompiledSystem, grid: Mapping | None = None, *, members: Mappi
         ("trajectories", trajectories), ("track_energy", track_energy), ("project", project)))
     threads, chunk_size = _optional_positive(threads, "threads"), _optional_positive(chunk_size, "chunk_size")
     _check_runner(progress, client, kernel)
-    if project and not layout.n_constraints:
-        raise ValueError(f"project needs holonomic constraints; model {layout.model!r} has none")
+    if project and not layout.n_constraints and f"{layout.prefix}_project" not in layout.functions:
+        raise ValueError(missing_constraints(layout, ["project"]))
     track_energy = track_energy and f"{layout.prefix}_energy" in layout.functions
     if grid is not None:
         columns, axes = grid_axes(grid)

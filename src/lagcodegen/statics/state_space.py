@@ -100,7 +100,9 @@ def linearize_state(eom: EquationsOfMotion, x0: Any, r0: Any = None, values: Map
     eom : EquationsOfMotion
         Without holonomic constraints.
     x0 : sequence (2n,) or mapping state (Symbol or name) -> value
-        The operating state (q, u); any state, not only an equilibrium.
+        The operating state (q, u); any state, not only an equilibrium. With dependent speeds
+        eliminated, also the state simulate takes, (q, independent speeds): the velocity
+        constraints complete it.
     r0 : sequence (n_r,) or mapping input -> value
         The inputs there; required when the model has inputs.
     values : mapping parameter -> float, optional
@@ -131,6 +133,8 @@ def linearize_state(eom: EquationsOfMotion, x0: Any, r0: Any = None, values: Map
         raise ValueError(f"model {eom.name!r} has constraints: its linearization is numeric; pass values= "
                          "({} for the defaults)")
     states = tuple(eom.q) + tuple(eom.u)
+    if eom.n_dependent:
+        x0 = _with_dependent_speeds(eom, x0, values, t0)
     point = _state_point(eom, x0)
     if eom.inputs and r0 is None:
         raise ValueError(f"model {eom.name!r} has inputs {', '.join(map(str, eom.inputs))}: pass r0")
@@ -297,6 +301,39 @@ def _complex_step(terms, base: np.ndarray, k: int) -> tuple:
 def _smooth(eom: EquationsOfMotion, matrix: sp.Matrix, what: str) -> sp.Matrix:
     _check_smooth(eom, matrix, what)
     return matrix
+
+
+def _with_dependent_speeds(eom: EquationsOfMotion, x0: Any, values: Mapping, t0: Any) -> Any:
+    """x0 of a model with eliminated dependent speeds as simulate takes it, (q, independent speeds)
+    (a sequence of that length, or a mapping without the dependent speeds), completed by the
+    dependent speeds the velocity constraints give there; a full state (q, u) is taken as it is."""
+    p = eom.n_u - eom.n_dependent
+    reduced, dependent = tuple(eom.q) + tuple(eom.u[:p]), tuple(eom.u[p:])
+    if isinstance(x0, Mapping):
+        names = {key if isinstance(key, str) else getattr(key, "name", str(key)) for key in x0}
+        if all(u.name in names for u in dependent):
+            return x0
+        point = named_point(eom, reduced, x0, "x0", "state")
+    else:
+        flat = np.ravel(np.asarray(x0, dtype=object)) if not isinstance(x0, (str, bytes)) else x0
+        if len(flat) != len(reduced):
+            return x0  # a full state, or a wrong length that _state_point names
+        point = named_point(eom, reduced, flat, "x0", "state")
+    A = sp.Matrix(eom.constraint_jacobian)
+    at = dict(zip(reduced, map(sp.sympify, point))) | {eom.t: sp.sympify(t0)}
+    vals = resolve_values(eom, values)
+    A_D = np.array(substitute_values(eom, A[:, p:].xreplace(at), vals, "the dependent block A_D").evalf(),
+                   dtype=float)
+    rest = sp.Matrix([sum((A[i, k] * eom.u[k] for k in range(p)), sp.S.Zero) + eom.constraint_rate[i]
+                      for i in range(eom.m)])
+    b = np.array(substitute_values(eom, rest.xreplace(at), vals, "the velocity constraints").evalf(),
+                 dtype=float).ravel()
+    scale = max(np.abs(np.asarray(substitute_values(eom, A.xreplace(at), vals, "A").evalf(), dtype=float)).max(),
+                0.0)
+    if not np.all(np.isfinite(A_D)) or np.linalg.matrix_rank(A_D, tol=1e-12 * scale) < eom.n_dependent:
+        raise ValueError(f"the velocity constraints of model {eom.name!r} do not fix the dependent speeds "
+                         f"{', '.join(map(str, dependent))} at x0 = {list(point)}: A_D = {A_D.tolist()} lost rank")
+    return tuple(point) + tuple(np.linalg.solve(A_D, -b))
 
 
 def _state_point(eom: EquationsOfMotion, x0: Any) -> tuple:
