@@ -37,11 +37,12 @@ from .codegen.printer import DEFAULT_TRIG
 from .codegen.reduce import reduce_expressions
 from .codegen.render import CSources, KernelLayout, render_sources, template_dir
 from .integrators.schemes import DEFAULT_METHODS, required_outputs
-from .model import Model
+from .model import ROUTE_TREE, Model
 from .native import cache
 from .native.build import CompiledSystem, build_module
 from .native.build_cost import estimate_build_cost
 from .symbolic.derive import EquationsOfMotion, derive_equations
+from .symbolic.trees import derive_from_tree
 
 SIMULATION_OUTPUTS = ("rhs", "energy", "points", "jacobian", "measurements", "reactions", "configuration")
 
@@ -103,7 +104,7 @@ def compile_model(model: Model | EquationsOfMotion, *, outputs=None, fixed: Mapp
     if stored is not None:
         sources, with_lanes, ops = stored
         return _build(model.name, sources, with_lanes, ops, cache_dir, extra_compile_args)
-    eom = model if isinstance(model, EquationsOfMotion) else derive_equations(model)
+    eom = model if isinstance(model, EquationsOfMotion) else _derive(model, methods, outputs)
     methods = tuple(methods)
     if methods == DEFAULT_METHODS:  # the defaults that apply; a method asked for by name is checked instead
         methods = applicable_methods(eom, methods)
@@ -130,6 +131,15 @@ def compile_model(model: Model | EquationsOfMotion, *, outputs=None, fixed: Mapp
         _store_alias(alias, key)
     sources, with_lanes, ops = stored
     return _build(eom.name, sources, with_lanes, ops, cache_dir, extra_compile_args)
+
+
+def _derive(model: Model, methods, outputs) -> EquationsOfMotion:
+    """derive_equations, except that a tree learns whether its kernels need the Jacobian (implicit
+    methods or the jacobian output): its formulation choice weighs that cost only then."""
+    if model.route != ROUTE_TREE:
+        return derive_equations(model)
+    implicit = "jacobian" in required_outputs(tuple(methods)) or "jacobian" in (outputs or ())
+    return derive_from_tree(model, implicit=implicit)
 
 
 def _function_ops(system) -> dict:

@@ -125,7 +125,7 @@ def test_estimate_reads_the_op_counts_after_cse(pendulum, fresh_cache, monkeypat
 
     monkeypatch.setattr(pipeline, "estimate_build_cost", spy)
     monkeypatch.setattr(build, "_compiler_identity", lambda command: "no compiler needed")
-    monkeypatch.setattr(build, "_fetch", lambda job, root: (None, None, root / "x.so"))  # skip gcc
+    monkeypatch.setattr(build, "_fetch", lambda job, root: (None, None, root / "x.so", None))  # skip gcc
     compile_model(pendulum, methods=("rk4", "heun"))
     compile_model(pendulum, methods=("rk4", "heun"))  # from the sources cache: same inputs
     system = reduce_expressions(pendulum, ["rhs", "energy", "points"])

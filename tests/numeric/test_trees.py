@@ -20,6 +20,7 @@ from lagcodegen.codegen.outputs import KernelError
 from lagcodegen.pipeline import compile_model
 from lagcodegen.run.simulate import jacobian, make_rhs, parameter_vector, simulate
 from lagcodegen.symbolic.derive import derive_equations
+from lagcodegen.symbolic.trees import choose_formulation, derive_from_tree
 
 
 def _states(n_q: int, count: int = 5, seed: int = 0) -> np.ndarray:
@@ -210,11 +211,21 @@ def test_a_driven_tree_takes_its_inputs_like_the_closed_form(tmp_path):
                                    rtol=1e-12, atol=1e-12)
 
 
-def test_the_cost_model_picks_closed_for_small_and_recursive_for_big_trees():
+def test_the_cost_model_picks_closed_for_small_and_recursive_for_big_trees(tmp_path):
+    """The choices the measured costs call for (trees.py's cost-model table): the closed form is the
+    faster step up to about 16 planar links, but with implicit methods its symbolic Jacobian makes
+    the compile several times slower from 6 links on; a 3D tree's closed form grows much faster."""
     small = derive_equations(catalog.pendulum_chain(2, route="tree"))
     big = derive_equations(catalog.pendulum_chain(30, route="tree"))
     assert small.tree is None and small.formulation.startswith("closed (chosen by cost")
     assert big.tree is not None and big.formulation.startswith("recursive (chosen by cost")
+    middle = catalog.pendulum_chain(8, route="tree")
+    assert choose_formulation(middle, implicit=False).name == "closed"
+    assert choose_formulation(middle).reason.startswith("chosen for 8 links: the closed form's Jacobian")
+    assert choose_formulation(catalog.spherical_chain(2), implicit=False).name == "recursive"
+    # compile_model knows the methods: RK4 alone keeps the closed form, the defaults do not
+    assert _compiled(middle, tmp_path).layout.formulation.startswith("closed (chosen by cost for 8 links")
+    assert compile_model(middle, cache_dir=tmp_path).layout.formulation.startswith("recursive (chosen for 8")
 
 
 def test_the_header_says_which_formulation(tmp_path):
@@ -242,7 +253,7 @@ def test_a_warm_compile_skips_the_derivation_and_a_damaged_model_entry_does_not(
     model = catalog.pendulum_chain(6, route="tree")
     first = _compiled(model, tmp_path)
     calls = []
-    monkeypatch.setattr(pipeline, "derive_equations", lambda m: calls.append(m) or derive_equations(m))
+    monkeypatch.setattr(pipeline, "derive_from_tree", lambda m, **options: calls.append(m) or derive_from_tree(m, **options))
     again = _compiled(model, tmp_path)
     assert calls == [] and again.key == first.key
     for entry in (tmp_path / "sources").glob("model-*.txt"):

@@ -28,10 +28,33 @@ from ..model import Model
 from ..tree import joint_map
 from .equations import EquationsOfMotion, assemble, lagrange_symbols
 
-#: operations per link of the recursive kernel and per closed-form entry, fitted to the planar
-#: chain (benchmarks/bench_scale.py prints the measured counts beside these estimates)
-RECURSIVE_OPS_PER_LINK = 110
-CLOSED_OPS_PER_ENTRY = 12
+# The cost model of `choose_formulation`: operations after CSE per evaluation of the dynamics, fitted
+# to the counts of `reduce_expressions(eom, ["rhs"] (or ["rhs", "jacobian"]), {})` for
+# pendulum_chain(n, route="tree") and spherical_chain(n) in each formulation (sympy 1.14, 2026-11-25):
+#   planar chain, n =        2     4     6     8     12    16
+#     closed dynamics       49   116   200   300   548   860     ~ 3.4 n^2
+#     closed jacobian      119   412   863  1470  3096  5338     ~ 21 n^2 (its reduce: 0.9 s at n = 6,
+#                                                                 5.7 s at 12, 14.5 s at 16)
+#     recursive dynamics    94   359   632   909  1475  2057     ~ 128 n
+#   spherical chain, 3 and 6 joints: closed 298 and 9452 (~ 1.2 n^5), recursive 132 and 717
+# The closed form also solves M ud = F by an unrolled LDL^T: about n^3 / 3 operations. RK4 steps
+# measured with them (ns; closed / recursive): n = 5 412 / 889, 8 897 / 1434, 12 1804 / 2363,
+# 16 3509 / 4110, 20 9217 / 3486: the estimates cross where the step times do (n ~ 17).
+PLANAR_CLOSED_OPS_PER_ENTRY = 3.4     # times n^2
+SPATIAL_CLOSED_OPS = 1.2              # times n^5: a 3D tree's closed-form entries nest rotations
+RECURSIVE_OPS_PER_LINK = 128
+CLOSED_JACOBIAN_FACTOR = 6            # the closed form's symbolic Jacobian against its dynamics
+#: with implicit methods the closed form also needs its symbolic Jacobian, whose CSE and build grow
+#: superlinearly (default methods, cold compile_model of the planar chain: closed 2.2 s at n = 5,
+#: 4.3 s at 8, 10.3 s at 12, 24 s at 16; recursive 0.85, 1.14, 1.46, 2.18 s); above this estimate
+#: the recursive kernel (whose Jacobian is central differences of the compiled rhs) is chosen
+CLOSED_JACOBIAN_BUDGET = 600
+
+
+def planar(model: Model) -> bool:
+    """True when every revolute joint of the tree turns about the same axis (a planar tree)."""
+    axes = {tuple(float(c) for c in link.axis) for link in model.tree if link.joint == "revolute"}
+    return len(axes) <= 1
 
 
 @dataclass(frozen=True)
@@ -70,24 +93,33 @@ class FormulationChoice:
                 f"closed form {self.closed_ops}, recursive {self.recursive_ops})")
 
 
-def choose_formulation(model: Model) -> FormulationChoice:
+def choose_formulation(model: Model, implicit: bool = True) -> FormulationChoice:
     """The formulation of ``model``'s tree: as Model.formulation says, else the cheaper estimate.
 
-    The closed form's M has n(n+1)/2 entries, each a sum over the links below both joints, and
-    its F as many products of speeds; its LDL^T solve costs n^3/6. The recursive kernel costs a
-    fixed number per link. Both constants are fitted to measured counts (module constants)."""
+    Estimates (module constants, fitted to measured counts): the closed form's K, M and F grow like
+    n^2 for a planar tree and much faster for a 3D one, plus n^3 / 3 for its LDL^T solve; the
+    recursive kernel costs a fixed number per link. With ``implicit`` (the methods need the
+    Jacobian; the default methods do) a closed form whose symbolic Jacobian would exceed
+    CLOSED_JACOBIAN_BUDGET operations is not chosen: its CSE and build dominate the compile."""
     n = len(model.tree)
-    closed = CLOSED_OPS_PER_ENTRY * n * (n + 1) * (n + 2) // 6 + n ** 3 // 6
+    entries = PLANAR_CLOSED_OPS_PER_ENTRY * n ** 2 if planar(model) else SPATIAL_CLOSED_OPS * n ** 5
+    closed = int(entries + n ** 3 / 3)
     recursive = RECURSIVE_OPS_PER_LINK * n
     if model.formulation in ("closed", "recursive"):
         return FormulationChoice(model.formulation, closed, recursive, "as the model asks")
-    name = "recursive" if recursive < closed else "closed"
-    return FormulationChoice(name, closed, recursive, f"chosen by cost for {n} links")
+    if recursive < closed:
+        return FormulationChoice("recursive", closed, recursive, f"chosen by cost for {n} links")
+    if implicit and CLOSED_JACOBIAN_FACTOR * entries > CLOSED_JACOBIAN_BUDGET:
+        return FormulationChoice("recursive", closed, recursive,
+                                 f"chosen for {n} links: the closed form's Jacobian (implicit methods) "
+                                 f"would take ~{int(CLOSED_JACOBIAN_FACTOR * entries)} operations")
+    return FormulationChoice("closed", closed, recursive, f"chosen by cost for {n} links")
 
 
-def derive_from_tree(model: Model) -> EquationsOfMotion:
-    """The equations of ``model``'s tree in the formulation `choose_formulation` picks."""
-    choice = choose_formulation(model)
+def derive_from_tree(model: Model, implicit: bool = True) -> EquationsOfMotion:
+    """The equations of ``model``'s tree in the formulation `choose_formulation` picks (``implicit``:
+    whether the kernels will need the Jacobian; compile_model knows, derive_equations assumes so)."""
+    choice = choose_formulation(model, implicit)
     if choice.name == "closed":
         eom = _derive_bodies(bodies_model(model))
         return replace(eom, route=f"kinematic tree ({len(model.tree)} links), closed form",
