@@ -722,16 +722,21 @@ def _row(rows, n):
     return next((r for r in rows if r["n"] == n), None)
 
 
-def _cold_goal(rows, n, limit, timeout) -> dict:
-    goal = f"cold compile_model, every default method, n={n} <= {limit:g} s"
+def _seconds_goal(goal: str, rows, n, phase: str, limit: float, timeout: float) -> dict:
+    """PASS when the ``phase`` measurement at n finished within ``limit`` seconds."""
     row = _row(rows, n)
     if row is None:
         return {"goal": goal, "status": "NOT RUN", "detail": f"n={n} not among the sizes"}
-    seconds = _ok(row["cold"], "seconds")
+    seconds = _ok(row[phase], "seconds")
     if seconds is None:
-        return {"goal": goal, "status": "FAIL", "detail": f"did not finish: {row['cold']['status']} "
+        return {"goal": goal, "status": "FAIL", "detail": f"did not finish: {row[phase]['status']} "
                 f"(time-out {timeout:g} s)"}
     return {"goal": goal, "status": "PASS" if seconds <= limit else "FAIL", "detail": f"{seconds:.3f} s"}
+
+
+def _cold_goal(rows, n, limit, timeout) -> dict:
+    return _seconds_goal(f"cold compile_model, every default method, n={n} <= {limit:g} s", rows, n, "cold",
+                         limit, timeout)
 
 
 def _memory_goal(rows) -> dict:
@@ -809,14 +814,7 @@ def _sweep_goal(sweep: dict) -> dict:
 
 def _derive_goal(rows, timeout) -> dict:
     n, limit = DERIVE_GOAL
-    goal = f"derive_equations at n={n} <= {limit:g} s"
-    row = _row(rows, n)
-    if row is None:
-        return {"goal": goal, "status": "NOT RUN", "detail": f"n={n} not among the sizes"}
-    seconds = _ok(row["derive"], "seconds")
-    if seconds is None:
-        return {"goal": goal, "status": "FAIL", "detail": f"did not finish: {row['derive']['status']}"}
-    return {"goal": goal, "status": "PASS" if seconds <= limit else "FAIL", "detail": f"{seconds:.3f} s"}
+    return _seconds_goal(f"derive_equations at n={n} <= {limit:g} s", rows, n, "derive", limit, timeout)
 
 
 def goals(result: dict) -> list:
