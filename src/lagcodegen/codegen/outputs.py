@@ -443,8 +443,11 @@ def _dependent_system_lines(w: KernelWriter, kernel, rest: str) -> list:
     # the rank test is relative to the whole constraint Jacobian: A_D's own largest entry would
     # make a 1 x 1 A_D (cos(theta) of a sleigh) regular until it is exactly 0
     lines.append("/* the scale of the rank test: the largest |entry| of the independent columns of A */")
-    lines += [f"if ({fabs}({w.expr(e, f'A[{i}][{k}]')}) > scale) scale = {fabs}({w.expr(e, f'A[{i}][{k}]')});"
-              for (i, k), e in results(kernel, "AI").items() if e != 0]
+    entries = [(i, k, e) for (i, k), e in results(kernel, "AI").items() if e != 0]
+    if entries:
+        lines.append(f"{real} entry;")
+    for i, k, e in entries:
+        lines += [f"entry = {fabs}({w.expr(e, f'A[{i}][{k}]')});", "if (entry > scale) scale = entry;"]
     return lines
 
 
