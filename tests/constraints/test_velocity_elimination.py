@@ -240,6 +240,10 @@ def test_the_linearization_about_upright_rolling_matches_sympys(discs, factor):
         again = linearize_state(eom, given, values={})
         np.testing.assert_allclose(again.x0, linear.x0, atol=1e-15)
         np.testing.assert_allclose(again.A, linear.A, atol=1e-12)
+    with pytest.raises(ValueError, match="gives the dependent speed.* x_d .*but not y_d"):
+        linearize_state(eom, reduced | {"x_d": spin}, values={})
+    with pytest.raises(ValueError, match="x0 entry for theta_d"):
+        linearize_state(eom, in_order[:6] + [float("nan"), spin], values={})
 
 
 def test_the_eliminated_disc_moves_as_the_multipliers_disc(discs):

@@ -311,8 +311,13 @@ def _with_dependent_speeds(eom: EquationsOfMotion, x0: Any, values: Mapping, t0:
     reduced, dependent = tuple(eom.q) + tuple(eom.u[:p]), tuple(eom.u[p:])
     if isinstance(x0, Mapping):
         names = {key if isinstance(key, str) else getattr(key, "name", str(key)) for key in x0}
-        if all(u.name in names for u in dependent):
+        given = [u.name for u in dependent if u.name in names]
+        if len(given) == len(dependent):
             return x0
+        if given:
+            raise ValueError(f"x0 gives the dependent speed(s) {', '.join(given)} of model {eom.name!r} but not "
+                             f"{', '.join(u.name for u in dependent if u.name not in names)}: give all of them "
+                             "(a full state) or none (the velocity constraints complete them)")
         point = named_point(eom, reduced, x0, "x0", "state")
     else:
         flat = np.ravel(np.asarray(x0, dtype=object)) if not isinstance(x0, (str, bytes)) else x0
