@@ -1282,7 +1282,8 @@ int lcg_pendulum_chain_5_f32_step_implicit_midpoint(float *t, float *x, const fl
  * every step leaves the pivots of the state it starts from in a gauge (5 values: the
  * 5 LDL^T pivots of M; no extra
  * factorization), and the driver compares them with the previous accepted state's and the run's
- * first state's. A pivot that changes by more than 100x (either way) in one step, or falls
+ * first state's; the run's final state, which no later step judges, by one more step on a copy
+ * (lcg_pendulum_chain_5_f32_judge_last). A pivot that changes by more than 100x (either way) in one step, or falls
  * below 1e-4 of its initial value, is reported as
  * LCG_SINGULAR_MASS_MATRIX (a pivot of M) or LCG_SINGULAR_CONSTRAINTS (of A M^-1 A^T).
  * ------------------------------------------------------------------------------------------ */
@@ -1315,7 +1316,7 @@ static int lcg_pendulum_chain_5_f32_gauge_check(const float *gauge, float *histo
  * finiteness check of the new state. A verdict of the monitor wins over the step's own status: a
  * step from a state across a singular configuration often diverges, and the cause is the crossing. */
 static int lcg_pendulum_chain_5_f32_step_any(int method, float t, float *x, const float *p, float h,
-                                 float *scratch, int project, float *history, int first)
+                                 float *scratch, int project, float *history, int first, int judge_only)
 {
     float step_t = t;  /* implicit and symplectic steps go through their exported step function */
     float *gauge;
@@ -1329,10 +1330,23 @@ static int lcg_pendulum_chain_5_f32_step_any(int method, float t, float *x, cons
     /* the step's first stage wrote the pivots of x; if it failed, the gauge still holds the last
      * accepted state's, which equal history's and pass */
     verdict = lcg_pendulum_chain_5_f32_gauge_check(gauge, history, first);
-    if (verdict != LCG_OK) return verdict;
+    if (verdict != LCG_OK || judge_only) return verdict;
     if (status == LCG_OK && !lcg_pendulum_chain_5_f32_finite(x)) status = LCG_NONFINITE_STATE;
     (void)project;
     return status;
+}
+
+/* The monitor's verdict on a run's last step, which no later step judges: one more step from a
+ * copy of the final state x_end writes that state's pivots to the gauge (its result is dropped),
+ * and they are judged against the state before. LCG_OK for a run of no steps. */
+static int lcg_pendulum_chain_5_f32_judge_last(int method, float t, const float *x_end, const float *p,
+                                   float h, float *scratch, float *history, long n_steps)
+{
+    float x[10];
+    int i;
+    if (n_steps < 1) return LCG_OK;
+    for (i = 0; i < 10; ++i) x[i] = x_end[i];
+    return lcg_pendulum_chain_5_f32_step_any(method, t, x, p, h, scratch, 0, history, 0, 1);
 }
 
 /* Store sample number `sample` of the outputs at time t. */
@@ -1370,7 +1384,7 @@ int lcg_pendulum_chain_5_f32_simulate(int method, float t0, const float *x0, con
     lcg_pendulum_chain_5_f32_record(0, t0, x, p, t_out, x_out, energy_out, points_out, residuals_out, multipliers_out);
     for (k = 1; k <= n_steps; ++k) {
         const float t = t0 + (float)(k - 1) * h;
-        status = lcg_pendulum_chain_5_f32_step_any(method, t, x, p, h, scratch, project, history, k == 1);
+        status = lcg_pendulum_chain_5_f32_step_any(method, t, x, p, h, scratch, project, history, k == 1, 0);
         if (status != LCG_OK) return status;
         *steps_done = k;
         if (--until_sample == 0) {
@@ -1380,7 +1394,7 @@ int lcg_pendulum_chain_5_f32_simulate(int method, float t0, const float *x0, con
             until_sample = stride;
         }
     }
-    return LCG_OK;
+    return lcg_pendulum_chain_5_f32_judge_last(method, t0 + (float)n_steps * h, x, p, h, scratch, history, n_steps);
 }
 
 /* Run n_members independent members, one after another (threads split members between calls).
@@ -1418,7 +1432,7 @@ void lcg_pendulum_chain_5_f32_sweep(int method, long n_members, const float *x0s
         }
         for (k = 1; k <= n_steps && code == LCG_OK; ++k) {
             for (i = 0; i < 10; ++i) last[i] = x[i];
-            code = lcg_pendulum_chain_5_f32_step_any(method, t0 + (float)(k - 1) * h, x, p, h, scratch, project, history, k == 1);
+            code = lcg_pendulum_chain_5_f32_step_any(method, t0 + (float)(k - 1) * h, x, p, h, scratch, project, history, k == 1, 0);
             if (code != LCG_OK) break;
             for (i = 0; i < 5; ++i) {
                 const float size = fabsf(x[i]);
@@ -1435,6 +1449,10 @@ void lcg_pendulum_chain_5_f32_sweep(int method, long n_members, const float *x0s
                     for (i = 0; i < 10; ++i) out[stored * 10 + i] = x[i];
                 }
             }
+        }
+        if (code == LCG_OK) {  /* the last step, judged from the final state; a failure reports that state */
+            for (i = 0; i < 10; ++i) last[i] = x[i];
+            code = lcg_pendulum_chain_5_f32_judge_last(method, t0 + (float)n_steps * h, x, p, h, scratch, history, n_steps);
         }
         steps_done[member] = k - 1;
         status[member] = code;

@@ -524,7 +524,8 @@ int lcg_rolling_wheels_step_implicit_midpoint(double *t, double *x, const double
  * every step leaves the pivots of the state it starts from in a gauge (1 values: the
  * 1 LDL^T pivots of M; no extra
  * factorization), and the driver compares them with the previous accepted state's and the run's
- * first state's. A pivot that changes by more than 100x (either way) in one step, or falls
+ * first state's; the run's final state, which no later step judges, by one more step on a copy
+ * (lcg_rolling_wheels_judge_last). A pivot that changes by more than 100x (either way) in one step, or falls
  * below 1e-8 of its initial value, is reported as
  * LCG_SINGULAR_MASS_MATRIX (a pivot of M) or LCG_SINGULAR_CONSTRAINTS (of A M^-1 A^T).
  * ------------------------------------------------------------------------------------------ */
@@ -557,7 +558,7 @@ static int lcg_rolling_wheels_gauge_check(const double *gauge, double *history, 
  * finiteness check of the new state. A verdict of the monitor wins over the step's own status: a
  * step from a state across a singular configuration often diverges, and the cause is the crossing. */
 static int lcg_rolling_wheels_step_any(int method, double t, double *x, const double *p, double h,
-                                 double *scratch, int project, double *history, int first)
+                                 double *scratch, int project, double *history, int first, int judge_only)
 {
     double step_t = t;  /* implicit and symplectic steps go through their exported step function */
     double *gauge;
@@ -571,10 +572,23 @@ static int lcg_rolling_wheels_step_any(int method, double t, double *x, const do
     /* the step's first stage wrote the pivots of x; if it failed, the gauge still holds the last
      * accepted state's, which equal history's and pass */
     verdict = lcg_rolling_wheels_gauge_check(gauge, history, first);
-    if (verdict != LCG_OK) return verdict;
+    if (verdict != LCG_OK || judge_only) return verdict;
     if (status == LCG_OK && !lcg_rolling_wheels_finite(x)) status = LCG_NONFINITE_STATE;
     (void)project;
     return status;
+}
+
+/* The monitor's verdict on a run's last step, which no later step judges: one more step from a
+ * copy of the final state x_end writes that state's pivots to the gauge (its result is dropped),
+ * and they are judged against the state before. LCG_OK for a run of no steps. */
+static int lcg_rolling_wheels_judge_last(int method, double t, const double *x_end, const double *p,
+                                   double h, double *scratch, double *history, long n_steps)
+{
+    double x[2];
+    int i;
+    if (n_steps < 1) return LCG_OK;
+    for (i = 0; i < 2; ++i) x[i] = x_end[i];
+    return lcg_rolling_wheels_step_any(method, t, x, p, h, scratch, 0, history, 0, 1);
 }
 
 /* Store sample number `sample` of the outputs at time t. */
@@ -612,7 +626,7 @@ int lcg_rolling_wheels_simulate(int method, double t0, const double *x0, const d
     lcg_rolling_wheels_record(0, t0, x, p, t_out, x_out, energy_out, points_out, residuals_out, multipliers_out);
     for (k = 1; k <= n_steps; ++k) {
         const double t = t0 + (double)(k - 1) * h;
-        status = lcg_rolling_wheels_step_any(method, t, x, p, h, scratch, project, history, k == 1);
+        status = lcg_rolling_wheels_step_any(method, t, x, p, h, scratch, project, history, k == 1, 0);
         if (status != LCG_OK) return status;
         *steps_done = k;
         if (--until_sample == 0) {
@@ -622,7 +636,7 @@ int lcg_rolling_wheels_simulate(int method, double t0, const double *x0, const d
             until_sample = stride;
         }
     }
-    return LCG_OK;
+    return lcg_rolling_wheels_judge_last(method, t0 + (double)n_steps * h, x, p, h, scratch, history, n_steps);
 }
 
 /* Run n_members independent members, one after another (threads split members between calls).
@@ -660,7 +674,7 @@ void lcg_rolling_wheels_sweep(int method, long n_members, const double *x0s, con
         }
         for (k = 1; k <= n_steps && code == LCG_OK; ++k) {
             for (i = 0; i < 2; ++i) last[i] = x[i];
-            code = lcg_rolling_wheels_step_any(method, t0 + (double)(k - 1) * h, x, p, h, scratch, project, history, k == 1);
+            code = lcg_rolling_wheels_step_any(method, t0 + (double)(k - 1) * h, x, p, h, scratch, project, history, k == 1, 0);
             if (code != LCG_OK) break;
             for (i = 0; i < 1; ++i) {
                 const double size = fabs(x[i]);
@@ -677,6 +691,10 @@ void lcg_rolling_wheels_sweep(int method, long n_members, const double *x0s, con
                     for (i = 0; i < 2; ++i) out[stored * 2 + i] = x[i];
                 }
             }
+        }
+        if (code == LCG_OK) {  /* the last step, judged from the final state; a failure reports that state */
+            for (i = 0; i < 2; ++i) last[i] = x[i];
+            code = lcg_rolling_wheels_judge_last(method, t0 + (double)n_steps * h, x, p, h, scratch, history, n_steps);
         }
         steps_done[member] = k - 1;
         status[member] = code;

@@ -142,6 +142,31 @@ def test_sweep_kernels_stop_at_the_polar_origin_like_simulate(polar, kernel):
     np.testing.assert_array_equal(result.steps_done, [100, 300, 200, 100])
 
 
+@pytest.mark.parametrize("method", ALL_METHODS)
+def test_a_landing_in_the_last_step_is_judged(polar, method):
+    """The run of the test above cut at t = 1.00: its 100th and last step lands next to the origin
+    (r_100 = 0.0005 after r_99 = 0.0105). No later step starts from there to judge it, so the
+    drivers judge the final state on their own (one more step on a copy, its result dropped):
+    before that, this run ended with status OK. The crossed state is the run's last sample, as
+    when a later step reports the landing."""
+    run = quiet_simulate(polar, (1.0005, 0.3, -1.0, 0.0), 1.0, 0.01, method, params=FREE)
+    assert run.status == Status.SINGULAR_MASS_MATRIX, run.message
+    assert run.failed_step == 101 and run.failed_time == pytest.approx(1.0)
+    assert run["r"][-1] == pytest.approx(0.0005, abs=1e-12)
+
+
+@pytest.mark.parametrize("kernel", ("lanes", "scalar"))
+def test_sweeps_judge_the_last_step_too(polar, kernel):
+    """As above, in both sweep kernels: r0 = 1.0005 lands next to the origin in the 100th and last
+    step; r0 = 0.5 moving away does not."""
+    members = {"r": (1.0005, 0.5), "r_d": (-1.0, 1.0)}
+    result = sweep(polar, members=members, x0=(1.0, 0.3, 0.0, 0.0), t_end=1.0, h=0.01, method="rk4",
+                   params=FREE, kernel=kernel, progress=False)
+    np.testing.assert_array_equal(result.status, [Status.SINGULAR_MASS_MATRIX, Status.OK])
+    np.testing.assert_array_equal(result.steps_done, [100, 100])
+    assert result.x_final[0][0] == pytest.approx(0.0005, abs=1e-12)
+
+
 def test_a_crossing_midway_between_two_steps_is_the_documented_limit(polar):
     """r0 = 1.005: r_100 = 0.005, r_101 = -0.005, the pivots m r^2 equal on both sides: nothing
     in the pivots shows the crossing (the header comment and the monitor's docs say so)."""
