@@ -30,7 +30,8 @@ from .equations import EquationsOfMotion, assemble, lagrange_symbols
 
 # The cost model of `choose_formulation`: operations after CSE per evaluation of the dynamics, fitted
 # to the counts of `reduce_expressions(eom, ["rhs"] (or ["rhs", "jacobian"]), {})` for
-# pendulum_chain(n, route="tree") and spherical_chain(n) in each formulation (sympy 1.14, 2026-11-25):
+# pendulum_chain(n, route="tree") and spherical_chain(n) in each formulation (sympy 1.14, 2026-11-25;
+# `python tools/tree_costs.py --spherical 1,2 --steps` prints them again):
 #   planar chain, n =        2     4     6     8     12    16
 #     closed dynamics       49   116   200   300   548   860     ~ 3.4 n^2
 #     closed jacobian      119   412   863  1470  3096  5338     ~ 21 n^2 (its reduce: 0.9 s at n = 6,
