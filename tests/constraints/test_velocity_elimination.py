@@ -316,3 +316,23 @@ def test_a_steady_turn_of_the_eliminated_disc_is_the_multipliers_ones_and_is_hel
     state = [turn.state[every.index(name)] for name in system.layout.coordinates + system.layout.speeds]
     run = simulate(system, state, t_end=2.0, h=1e-3)
     assert run.ok and np.abs(run["theta"] - 0.3).max() < 1e-9 and np.abs(run["psi_d"] - 0.5).max() < 1e-9
+
+
+def test_the_dynamics_kernel_solves_the_dependent_speeds_from_its_own_constraint_jacobian():
+    """One evaluation of A per right-hand side: the dynamics kernel solves A_D u_dep = -(A_I u_I + b)
+    from the A it forms anyway, between its temporaries that do not read u_dep and those that do (a
+    call of the public dependent_speeds function would form A a second time). Its values are
+    checked against the disc's sympy model by the tests above."""
+    from lagcodegen.codegen.reduce import reduce_expressions
+    from lagcodegen.codegen.render import render_sources
+
+    x, y = rolling_disc().coordinates[:2]
+    eom = derive_equations(rolling_disc(dependent_speeds=[x, y]))
+    source = render_sources(reduce_expressions(eom, ["rhs"], {}), methods=("rk4",)).source
+    start = source.index("_dynamics(double t")
+    body = source[start:source.index("\n}\n", start)]
+    assert "_dependent_speeds(" not in body
+    solve, first_reader = body.index("_dense_solve(AD_dep, u_dep"), body.index("= u_dep[0];")
+    assert solve < first_reader
+    for name in eom.u[eom.n_u - eom.n_dependent:]:  # no temporary reads a dependent speed before the solve
+        assert f"*{name}" not in body[:solve] and f"{name}*" not in body[:solve]

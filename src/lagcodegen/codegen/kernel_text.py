@@ -137,11 +137,15 @@ class KernelWriter:
             raise EmitError(f"cannot print {where}: {err}") from err
 
     def head(self, kernel: ReducedKernel, touches_state: bool = False, reads_inputs: bool = False,
-             on_singular: str | None = None) -> list:
+             on_singular: str | None = None, dependent_solve: list | None = None) -> list:
         """Input aliases, (void) casts of unused arguments and the CSE temporaries of ``kernel``
         (``reads_inputs``: the function has the argument ``r``). A kernel that reads eliminated
         dependent speeds first solves for them; ``on_singular`` is the statement run when that
-        solve fails (else their NaN values carry on)."""
+        solve fails (else their NaN values carry on). ``dependent_solve``: lines that leave them
+        in ``u_dep`` from the kernel's own temporaries, run after the temporaries that do not read
+        them (in place of a call of ``<prefix>_dependent_speeds``)."""
+        if dependent_solve is not None and any(s in kernel.symbols for s in self.names.dependent_index or {}):
+            return self._split_head(kernel, touches_state, reads_inputs, dependent_solve)
         inputs, unused = self._input_lines(kernel, reads_inputs)
         if touches_state and "x" in unused:
             unused.remove("x")
@@ -159,6 +163,32 @@ class KernelWriter:
         for s, expr in kernel.temporaries:
             lines.append(f"const {self.real} {self.names.symbols[s]} = {self.expr(expr, self.names.symbols[s])};")
         return lines
+
+    def _split_head(self, kernel: ReducedKernel, touches_state: bool, reads_inputs: bool, solve: list) -> list:
+        """`head` with the dependent speeds solved between the temporaries that do not read them
+        and those that do (CSE orders each after what it reads, so both groups keep their order)."""
+        index = self.names.dependent_index
+        inputs, unused = self._input_lines(kernel, reads_inputs)
+        if touches_state and "x" in unused:
+            unused.remove("x")
+        after, later = set(index), []
+        before = []
+        for s, expr in kernel.temporaries:
+            (later if expr.free_symbols & after else before).append((s, expr))
+            if later and later[-1][0] is s:
+                after.add(s)
+        lines = [f"/* Inputs ({len(inputs)}) */"] + inputs + [f"(void){arg};" for arg in unused]
+        lines.append(f"/* Intermediate terms ({len(kernel.temporaries)}), total ops {kernel.ops_after} "
+                     f"(before CSE {kernel.ops_before}); first those that do not read the dependent speeds */")
+        lines += self._temporary_lines(before) + solve
+        lines += [f"const {self.real} {self.names.symbols[s]} = u_dep[{i}];" for s, i in index.items()
+                  if s in kernel.symbols]
+        lines.append("/* the intermediate terms that read the dependent speeds */")
+        return lines + self._temporary_lines(later)
+
+    def _temporary_lines(self, temporaries) -> list:
+        return [f"const {self.real} {self.names.symbols[s]} = {self.expr(expr, self.names.symbols[s])};"
+                for s, expr in temporaries]
 
     def _dependent_lines(self, kernel: ReducedKernel, on_singular: str | None) -> list:
         """The eliminated dependent speeds the kernel reads, from ``<prefix>_dependent_speeds``."""

@@ -41,7 +41,12 @@ def _forcing_rows(eom: EquationsOfMotion) -> list:
 def _dynamics_rows(eom: EquationsOfMotion, accelerations) -> list:
     kinematics = [] if list(eom.kinematics) == list(eom.u) and not eom.n_dependent else \
         [(("K", j, 0), eom.kinematics[j]) for j in range(eom.n_q)]
-    return kinematics + _mass_rows(eom) + _forcing_rows(eom) + _constraint_rows(eom, with_bias=True)
+    rows = kinematics + _mass_rows(eom) + _forcing_rows(eom) + _constraint_rows(eom, with_bias=True)
+    if eom.n_dependent:  # the dependent speeds are solved inside the kernel, sharing A's temporaries
+        A, u, p = eom.constraint_jacobian, eom.u, eom.n_u - eom.n_dependent
+        rows += [(("BI", i, 0), sp.Add(*[A[i, k] * u[k] for k in range(p)]) + eom.constraint_rate[i])
+                 for i in range(eom.m)]
+    return rows
 
 
 def _constraint_rows(eom: EquationsOfMotion, with_bias: bool) -> list:
@@ -837,8 +842,9 @@ def _dynamics_functions(w: KernelWriter) -> list:
     kernel = system.kernel("dynamics")
     if system.recursive:
         return _recursive_dynamics_functions(w, kernel)
+    solve = _inline_dependent_lines(w, kernel) if w.n_dependent else None
     body = w.head(kernel, touches_state=system.kinematics_identity, reads_inputs=True,
-                  on_singular="return dep_status;")
+                  on_singular="return dep_status;", dependent_solve=solve)
     M = results(kernel, "M")
     body.append("/* Mass matrix, lower triangle */")
     for (j, k), expr in M.items():
@@ -911,6 +917,29 @@ def _recursive_dynamics_functions(w: KernelWriter, kernel) -> list:
                    "Runge-Kutta stage.", body, hot=True),
             record("int", f"{prefix}_dynamics", arguments, "The same, as one function for the other callers.",
                    [f"return {prefix}_dynamics_hot(t, x, {w.rp}, qd, ud, gauge);"], static=True)]
+
+
+def _inline_dependent_lines(w: KernelWriter, kernel) -> list:
+    """The dependent speeds solved where the kernel's temporaries that do not read them are done:
+    A_D u_dep = -(A_I u_I + b) from the kernel's own A and BI results (the same system and rank
+    test as ``<prefix>_dependent_speeds``, without evaluating A twice)."""
+    m, p, real, prefix = w.n_dependent, w.n_u, w.real, w.prefix
+    fabs = "fabsf" if real == "float" else "fabs"
+    A = results(kernel, "A")
+    lines = [f"{real} u_dep[{m}], AD_dep[{m * m}], scale_dep = {literal(0, real)};",
+             "/* the dependent speeds from A_D u_dep = -(A_I u_I + b); the rank test's scale is the largest",
+             " * |entry| of the independent columns of A */"]
+    lines += [f"AD_dep[{i * m + j}] = {w.expr(A.get((i, p + j), 0), f'A_D[{i}][{j}]')};"
+              for i in range(m) for j in range(m)]
+    lines += [f"u_dep[{i}] = -({w.expr(e, f'row {i}')});" for (i, _), e in results(kernel, "BI").items()]
+    for i in range(m):
+        for k in range(p):
+            entry = A.get((i, k), 0)
+            if entry != 0:
+                lines.append(f"if ({fabs}({w.expr(entry, f'A[{i}][{k}]')}) > scale_dep) "
+                             f"scale_dep = {fabs}({w.expr(entry, f'A[{i}][{k}]')});")
+    lines.append(f"if (!{prefix}_dense_solve(AD_dep, u_dep, {m}, 1, scale_dep, 0)) return LCG_SINGULAR_CONSTRAINTS;")
+    return lines
 
 
 def _eliminated_dynamics_lines(w: KernelWriter, kernel, M: dict) -> list:
