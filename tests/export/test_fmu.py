@@ -266,3 +266,32 @@ def test_the_cli_names_an_unknown_model_and_a_directory(tmp_path, capsys):
     assert "model 'no_such_model' is neither an example" in capsys.readouterr().err
     assert main(["fmu", "double_pendulum", "--out", str(tmp_path)]) == 2
     assert f"FMU path '{tmp_path}' is a directory" in capsys.readouterr().err
+
+
+@pytest.fixture(scope="module")
+def polar_fmu(fmi_version, tmp_path_factory):
+    """`catalog.elastic_pendulum` with k = g = 0: a free particle in polar coordinates, M = diag(m,
+    m r^2). From r = 1.0005, r' = -1, phi' = 0 it moves on a straight line through the pivot, r(t) =
+    1.0005 - t exactly (phi'' = -2 r' phi' / r = 0; tests/numeric/test_singular_crossing.py), so the
+    grid state at t = 1.00 is r = 0.0005, next to the singular r = 0 (the pivot m r^2 drops 441x in
+    that step), and the next steps jump across it."""
+    from lagcodegen.catalog import elastic_pendulum
+
+    system = compile_model(elastic_pendulum(), methods=("rk4",))
+    return export_fmu(system, tmp_path_factory.mktemp("fmu") / "polar.fmu",
+                      x0={"r": 1.0005, "phi": 0.3, "r_d": -1.0, "phi_d": 0.0}, params={"k": 0.0, "g": 0.0},
+                      step=0.01, fmi_version=fmi_version)
+
+
+@pytest.mark.parametrize("stop_time, interval", [(2.0, 0.01), (2.0, 0.25), (1.0, 0.5), (1.0, 1.0)])
+def test_co_simulation_stops_where_a_step_lands_next_to_a_singular_configuration(polar_fmu, stop_time, interval):
+    """doStep runs the singularity monitor of `simulate`, with its history kept from one doStep to
+    the next, and judges the last step of each doStep (a landing in the last step of the run, stop
+    time 1.0, included): a step across the polar origin never ends with status OK. The singular
+    step is the one to t = 1.00; the monitor reports it from that state, as simulate does
+    (failed_time 1.0)."""
+    messages = []
+    with pytest.raises(Exception, match="DoStep failed with status 3"):
+        simulate_fmu(str(polar_fmu), stop_time=stop_time, output_interval=interval, output=["r"],
+                     logger=lambda *args: messages.append(repr(args)))
+    assert any("the mass matrix is singular" in m and "(t = 1)" in m for m in messages), messages[-3:]

@@ -140,6 +140,18 @@ def stepper_context(system, names, real: str, methods: list) -> dict:
             "that context points to.", []))
     context["simulate_decl"] = driver["decl"]
     context["exported"].append(driver)
+    held = f"const {real} *r, const {real} *r1, " if system.inputs else ""
+    monitored = _record("int", f"{prefix}_step_monitored",
+                        f"int method, {real} t, {real} *x, {held}const {real} *p, {real} h, {real} *work, int first, "
+                        "int judge_only",
+                        "One step of the method numbered `method` under the singularity monitor of "
+                        f"{prefix}_simulate, for a caller's own loop (work: {prefix.upper()}_WORK_SIZE values, "
+                        "kept between calls; first: 1 after the state or parameters were set; judge_only: judge "
+                        "x, the last state reached, and leave it as it is)"
+                        + ("; r1 NULL holds r over the step" if system.inputs else "") + "; returns a status code.",
+                        [])
+    context["step_monitored_decl"] = monitored["decl"]
+    context["exported"].append(monitored)
     tables = summaries = ""
     if system.inputs:
         tables = f"const {real} *input_t, const {real} *input_r, long n_knots, int hold, "

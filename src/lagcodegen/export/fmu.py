@@ -244,6 +244,7 @@ def _wrapper_source(sources: CSources, table, guid: str, method: str, step: floa
         "x_start": numbers_of("state"), "p_start": numbers_of("parameter"), "fixed_values": numbers_of("fixed"),
         "h_start": repr(float(step)), "vr": table.ranges,
         "r_argument": "c->r, " if layout.inputs else "",
+        "method_macro": f"{layout.prefix.upper()}_METHOD_{method.upper()}",
         "has_energy": bool(table.of_kind("energy")), "has_points": bool(layout.points),
         "has_measurements": bool(layout.measurements),
         "status_codes": [{"value": row.code, "doc": row.message} for row in STATUS_TABLE],
