@@ -521,10 +521,19 @@ static int lcg_cartesian_pendulum_step_any(int method, double t, double *x, cons
 {
     double *gauge;
     int status, verdict;
+    if (judge_only) {  /* NaN until the first stage writes x's pivots: a first stage that fails leaves them */
+        switch (method) {
+        case 0: gauge = scratch + 20; break;
+        default: return LCG_UNKNOWN_METHOD;
+        }
+        for (verdict = 0; verdict < 5; ++verdict) gauge[verdict] = 0.0 / 0.0;
+    }
     switch (method) {
     case 0: status = lcg_cartesian_pendulum_rk4_step(t, x, p, h, scratch, scratch + 20); gauge = scratch + 20; break;
     default: return LCG_UNKNOWN_METHOD;
     }
+    /* a final state on the singular set: its first stage failed before writing the pivots */
+    if (judge_only && status != LCG_OK && gauge[0] != gauge[0]) return status;
     /* the step's first stage wrote the pivots of x; if it failed, the gauge still holds the last
      * accepted state's, which equal history's and pass */
     verdict = lcg_cartesian_pendulum_gauge_check(gauge, history, first);

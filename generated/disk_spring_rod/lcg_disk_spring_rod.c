@@ -626,12 +626,23 @@ static int lcg_disk_spring_rod_step_any(int method, double t, double *x, const d
     double step_t = t;  /* implicit and symplectic steps go through their exported step function */
     double *gauge;
     int status, verdict;
+    if (judge_only) {  /* NaN until the first stage writes x's pivots: a first stage that fails leaves them */
+        switch (method) {
+        case 0: gauge = scratch + 20; break;
+        case 1: gauge = scratch + 26; break;
+        case 2: gauge = scratch + 48; break;
+        default: return LCG_UNKNOWN_METHOD;
+        }
+        for (verdict = 0; verdict < 2; ++verdict) gauge[verdict] = 0.0 / 0.0;
+    }
     switch (method) {
     case 0: status = lcg_disk_spring_rod_rk4_step(t, x, p, h, scratch, scratch + 20); gauge = scratch + 20; break;
     case 1: status = lcg_disk_spring_rod_step_symplectic_euler(&step_t, x, p, h, scratch); gauge = scratch + 26; break;
     case 2: status = lcg_disk_spring_rod_step_implicit_midpoint(&step_t, x, p, h, scratch); gauge = scratch + 48; break;
     default: return LCG_UNKNOWN_METHOD;
     }
+    /* a final state on the singular set: its first stage failed before writing the pivots */
+    if (judge_only && status != LCG_OK && gauge[0] != gauge[0]) return status;
     /* the step's first stage wrote the pivots of x; if it failed, the gauge still holds the last
      * accepted state's, which equal history's and pass */
     verdict = lcg_disk_spring_rod_gauge_check(gauge, history, first);

@@ -626,12 +626,23 @@ static int lcg_elastic_pendulum_f32_step_any(int method, float t, float *x, cons
     float step_t = t;  /* implicit and symplectic steps go through their exported step function */
     float *gauge;
     int status, verdict;
+    if (judge_only) {  /* NaN until the first stage writes x's pivots: a first stage that fails leaves them */
+        switch (method) {
+        case 0: gauge = scratch + 20; break;
+        case 1: gauge = scratch + 26; break;
+        case 2: gauge = scratch + 48; break;
+        default: return LCG_UNKNOWN_METHOD;
+        }
+        for (verdict = 0; verdict < 2; ++verdict) gauge[verdict] = 0.0F / 0.0F;
+    }
     switch (method) {
     case 0: status = lcg_elastic_pendulum_f32_rk4_step(t, x, p, h, scratch, scratch + 20); gauge = scratch + 20; break;
     case 1: status = lcg_elastic_pendulum_f32_step_symplectic_euler(&step_t, x, p, h, scratch); gauge = scratch + 26; break;
     case 2: status = lcg_elastic_pendulum_f32_step_implicit_midpoint(&step_t, x, p, h, scratch); gauge = scratch + 48; break;
     default: return LCG_UNKNOWN_METHOD;
     }
+    /* a final state on the singular set: its first stage failed before writing the pivots */
+    if (judge_only && status != LCG_OK && gauge[0] != gauge[0]) return status;
     /* the step's first stage wrote the pivots of x; if it failed, the gauge still holds the last
      * accepted state's, which equal history's and pass */
     verdict = lcg_elastic_pendulum_f32_gauge_check(gauge, history, first);

@@ -653,10 +653,19 @@ static int lcg_four_bar_f32_step_any(int method, float t, float *x, const float 
 {
     float *gauge;
     int status, verdict;
+    if (judge_only) {  /* NaN until the first stage writes x's pivots: a first stage that fails leaves them */
+        switch (method) {
+        case 0: gauge = scratch + 30; break;
+        default: return LCG_UNKNOWN_METHOD;
+        }
+        for (verdict = 0; verdict < 11; ++verdict) gauge[verdict] = 0.0F / 0.0F;
+    }
     switch (method) {
     case 0: status = lcg_four_bar_f32_rk4_step(t, x, p, h, scratch, scratch + 30); gauge = scratch + 30; break;
     default: return LCG_UNKNOWN_METHOD;
     }
+    /* a final state on the singular set: its first stage failed before writing the pivots */
+    if (judge_only && status != LCG_OK && gauge[0] != gauge[0]) return status;
     /* the step's first stage wrote the pivots of x; if it failed, the gauge still holds the last
      * accepted state's, which equal history's and pass */
     verdict = lcg_four_bar_f32_gauge_check(gauge, history, first);

@@ -167,6 +167,33 @@ def test_sweeps_judge_the_last_step_too(polar, kernel):
     assert result.x_final[0][0] == pytest.approx(0.0005, abs=1e-12)
 
 
+@pytest.mark.parametrize("method", ("euler", "midpoint"))
+def test_a_final_state_on_the_singular_set_is_not_ok(polar, method):
+    """h = 1/8 from r0 = 1, r0' = -1: every number is exact in binary, and the line r = 1 - t
+    (exact, above) lands on r = 0 itself in the 8th and last step. Euler and the midpoint rule
+    evaluate nowhere else near it, so only the final judgement sees it; its first stage fails
+    there before writing any pivots, and that failure is the verdict (these runs ended with status
+    OK before). The reported step is the judging one from t = 1, as when a later step would
+    report the landing."""
+    run = quiet_simulate(polar, (1.0, 0.3, -1.0, 0.0), 1.0, 0.125, method, params=FREE)
+    assert run.status == Status.SINGULAR_MASS_MATRIX, run.message
+    assert run.failed_step == 9 and run.failed_time == 1.0
+    assert run["r"][-1] == 0.0
+
+
+@pytest.mark.parametrize("kernel", ("lanes", "scalar"))
+def test_sweeps_judge_a_final_state_on_the_singular_set(polar, kernel):
+    """As above in both sweep kernels (Euler): r0 = 1 lands on r = 0 in its last step; r0 = 0.5
+    lands there at t = 0.5 and the next step reports it; r0 = 2 ends at r = 1."""
+    members = {"r": (1.0, 0.5, 2.0)}
+    result = sweep(polar, members=members, x0=(1.0, 0.3, -1.0, 0.0), t_end=1.0, h=0.125, method="euler",
+                   params=FREE, kernel=kernel, progress=False)
+    singular, ok = Status.SINGULAR_MASS_MATRIX, Status.OK
+    np.testing.assert_array_equal(result.status, [singular, singular, ok])
+    np.testing.assert_array_equal(result.steps_done, [8, 4, 8])
+    np.testing.assert_array_equal(result.x_final[:, 0], [0.0, 0.0, 1.0])
+
+
 def test_a_crossing_midway_between_two_steps_is_the_documented_limit(polar):
     """r0 = 1.005: r_100 = 0.005, r_101 = -0.005, the pivots m r^2 equal on both sides: nothing
     in the pivots shows the crossing (the header comment and the monitor's docs say so)."""
