@@ -160,9 +160,7 @@ class KernelWriter:
         lines += [f"(void){arg};" for arg in unused]
         lines.append(f"/* Intermediate terms ({len(kernel.temporaries)}), total ops {kernel.ops_after} "
                      f"(before CSE {kernel.ops_before}) */")
-        for s, expr in kernel.temporaries:
-            lines.append(f"const {self.real} {self.names.symbols[s]} = {self.expr(expr, self.names.symbols[s])};")
-        return lines
+        return lines + self._temporary_lines(kernel.temporaries)
 
     def _split_head(self, kernel: ReducedKernel, touches_state: bool, reads_inputs: bool, solve: list) -> list:
         """`head` with the dependent speeds solved between the temporaries that do not read them
