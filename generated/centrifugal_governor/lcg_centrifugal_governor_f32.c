@@ -692,17 +692,22 @@ static int lcg_centrifugal_governor_f32_judge_last(int method, float t, const fl
 /* For a caller's own stepping loop (the FMU's doStep): one step under the singularity monitor, its
  * history in work as lcg_centrifugal_governor_f32_simulate keeps it (work holds LCG_CENTRIFUGAL_GOVERNOR_F32_WORK_SIZE values and carries the
  * history from one call to the next); first: 1 for the first step after the state or parameters
- * were set. judge_only: judge x, the final state of the steps so far, without changing it (one
- * more step on a copy, its result dropped, as lcg_centrifugal_governor_f32_simulate judges its last step). */
+ * were set. A step that fails (its own status or the monitor's verdict on x) leaves x as it was.
+ * judge_only: judge x, the final state of the steps so far, without changing it (one more step on
+ * a copy, its result dropped, as lcg_centrifugal_governor_f32_simulate judges its last step). */
 int lcg_centrifugal_governor_f32_step_monitored(int method, float t, float *x, const float *p, float h, float *work, int first, int judge_only)
 {
     float *history = work + 2;
     float *scratch = history + 2 * 1;
     float copy[2];
-    int i;
-    if (!judge_only) return lcg_centrifugal_governor_f32_step_any(method, t, x, p, h, scratch, 0, history, first, 0);
+    int i, status;
     for (i = 0; i < 2; ++i) copy[i] = x[i];
-    return lcg_centrifugal_governor_f32_step_any(method, t, copy, p, h, scratch, 0, history, 0, 1);
+    if (judge_only) return lcg_centrifugal_governor_f32_step_any(method, t, copy, p, h, scratch, 0, history, 0, 1);
+    status = lcg_centrifugal_governor_f32_step_any(method, t, copy, p, h, scratch, 0, history, first, 0);
+    if (status == LCG_OK) {
+        for (i = 0; i < 2; ++i) x[i] = copy[i];
+    }
+    return status;
 }
 
 /* Store sample number `sample` of the outputs at time t. */

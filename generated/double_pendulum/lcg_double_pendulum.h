@@ -99,7 +99,7 @@ int lcg_double_pendulum_step_implicit_midpoint(double *t, double *x, const doubl
 /* Fixed-step integration loop; returns a status code. */
 int lcg_double_pendulum_simulate(int method, double t0, const double *x0, const double *p, double h, long n_steps, long stride, int project, double *t_out, double *x_out, double *energy_out, double *points_out, double *residuals_out, double *multipliers_out, double *work, long *steps_done);
 
-/* One step of the method numbered `method` under the singularity monitor of lcg_double_pendulum_simulate, for a caller's own loop (work: LCG_DOUBLE_PENDULUM_WORK_SIZE values, kept between calls; first: 1 after the state or parameters were set; judge_only: judge x, the last state reached, and leave it as it is); returns a status code. */
+/* One step of the method numbered `method` under the singularity monitor of lcg_double_pendulum_simulate, for a caller's own loop (work: LCG_DOUBLE_PENDULUM_WORK_SIZE values, kept between calls; first: 1 after the state or parameters were set; a failed step leaves x as it was; judge_only: judge x, the last state reached, and leave it as it is); returns a status code. */
 int lcg_double_pendulum_step_monitored(int method, double t, double *x, const double *p, double h, double *work, int first, int judge_only);
 
 /* Many independent members, one after another. */

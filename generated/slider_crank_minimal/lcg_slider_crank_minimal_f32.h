@@ -100,7 +100,7 @@ int lcg_slider_crank_minimal_f32_step_implicit_midpoint(float *t, float *x, cons
 /* Fixed-step integration loop; returns a status code. */
 int lcg_slider_crank_minimal_f32_simulate(int method, float t0, const float *x0, const float *p, float h, long n_steps, long stride, int project, float *t_out, float *x_out, float *energy_out, float *points_out, float *residuals_out, float *multipliers_out, float *work, long *steps_done);
 
-/* One step of the method numbered `method` under the singularity monitor of lcg_slider_crank_minimal_f32_simulate, for a caller's own loop (work: LCG_SLIDER_CRANK_MINIMAL_F32_WORK_SIZE values, kept between calls; first: 1 after the state or parameters were set; judge_only: judge x, the last state reached, and leave it as it is); returns a status code. */
+/* One step of the method numbered `method` under the singularity monitor of lcg_slider_crank_minimal_f32_simulate, for a caller's own loop (work: LCG_SLIDER_CRANK_MINIMAL_F32_WORK_SIZE values, kept between calls; first: 1 after the state or parameters were set; a failed step leaves x as it was; judge_only: judge x, the last state reached, and leave it as it is); returns a status code. */
 int lcg_slider_crank_minimal_f32_step_monitored(int method, float t, float *x, const float *p, float h, float *work, int first, int judge_only);
 
 /* Many independent members, one after another. */

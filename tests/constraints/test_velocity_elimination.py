@@ -24,7 +24,7 @@ from test_rolling_disc import CRITICAL, lean_period, rolling_disc, sympy_upright
 
 from lagcodegen import Model, ModelError, derive_equations
 from lagcodegen.pipeline import compile_model
-from lagcodegen.run.simulate import c_pointer, dependent_speeds, parameter_vector, simulate
+from lagcodegen.run.simulate import c_pointer, dependent_speeds, make_rhs, parameter_vector, simulate
 from lagcodegen.status import Status
 
 pytestmark = pytest.mark.compiler
@@ -336,3 +336,22 @@ def test_the_dynamics_kernel_solves_the_dependent_speeds_from_its_own_constraint
     assert solve < first_reader
     for name in eom.u[eom.n_u - eom.n_dependent:]:  # no temporary reads a dependent speed before the solve
         assert f"*{name}" not in body[:solve] and f"{name}*" not in body[:solve]
+
+
+@pytest.mark.parametrize("name", ("AD_dep", "scale_dep", "u_dep"))
+def test_a_symbol_named_like_the_kernels_own_locals_is_renamed(sleighs, tmp_path, name):
+    """The inline solve's locals (AD_dep, scale_dep, u_dep) are reserved: a sleigh whose lever arm
+    is called so compiles, and its rhs equals the sleigh's with the usual name (second route: the
+    same model; a BuildError 'conflicting type qualifiers' before the names were reserved)."""
+    x, y, theta = me.dynamicsymbols("x y theta")
+    m, inertia, arm = sp.symbols(f"m I {name}", positive=True)
+    xc, yc = x + arm * sp.cos(theta), y + arm * sp.sin(theta)
+    T = m * (xc.diff(t) ** 2 + yc.diff(t) ** 2) / 2 + inertia * theta.diff(t) ** 2 / 2
+    blade = -x.diff(t) * sp.sin(theta) + y.diff(t) * sp.cos(theta)
+    renamed = Model("chaplygin_sleigh", [x, y, theta], [m, inertia, arm], kinetic_energy=T,
+                    motion_constraints=[blade], dependent_speeds=[y],
+                    parameter_values={"m": VALUES["m"], "I": VALUES["I"], name: VALUES["a"]})
+    system = compile_model(renamed, methods=("rk4",), cache_dir=tmp_path)
+    state = np.array([0.1, -0.2, 0.7, 0.4, 1.3])  # x, y, theta, x', theta'
+    # the names order the CSE's terms, so rounding may differ in the last place
+    np.testing.assert_allclose(make_rhs(system)(0.0, state), make_rhs(sleighs["y"])(0.0, state), rtol=1e-13, atol=1e-15)

@@ -295,3 +295,35 @@ def test_co_simulation_stops_where_a_step_lands_next_to_a_singular_configuration
         simulate_fmu(str(polar_fmu), stop_time=stop_time, output_interval=interval, output=["r"],
                      logger=lambda *args: messages.append(repr(args)))
     assert any("the mass matrix is singular" in m and "(t = 1)" in m for m in messages), messages[-3:]
+
+
+def test_a_failed_step_leaves_the_last_accepted_state(polar_fmu, fmi_version):
+    """Intervals of 0.3 s: the monitor rejects the step from t = 1.00 (r = 0.0005, next to the
+    origin) in the middle of the fourth doStep. The FMU's state stays the one the failed step
+    started from, r = 1.0005 - 1.00 = 0.0005 (the exact line, above), not the state past the
+    origin the rejected step reached (r = -0.0095)."""
+    from fmpy import extract
+    from fmpy.simulation import instantiate_fmu
+
+    description = read_model_description(str(polar_fmu))
+    refs = {v.name: v.valueReference for v in description.modelVariables}
+    messages = []
+
+    def logger(*args):  # a logger of our own: FMPy's message proxy keeps the last one it was given
+        messages.append(repr(args))
+
+    slave = instantiate_fmu(extract(str(polar_fmu)), description, fmi_type="CoSimulation", logger=logger)
+    if fmi_version == "2.0":
+        slave.setupExperiment(startTime=0.0)
+    slave.enterInitializationMode()
+    slave.exitInitializationMode()
+    t = 0.0
+    with pytest.raises(Exception, match="DoStep failed"):
+        for _ in range(8):
+            slave.doStep(currentCommunicationPoint=t, communicationStepSize=0.3)
+            t += 0.3
+    assert t == pytest.approx(0.9)
+    assert any("(t = 1)" in m for m in messages), messages
+    read = slave.getReal if fmi_version == "2.0" else slave.getFloat64
+    assert read([refs["r"]])[0] == pytest.approx(0.0005, abs=1e-12)
+    slave.freeInstance()

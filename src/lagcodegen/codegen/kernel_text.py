@@ -23,7 +23,7 @@ RESERVED = {"t", "x", "p", "out", "M", "F", "ud", "qd", "xdot", "B", "J", "c", "
 #: names of the other models' symbols do not change)
 DRIVEN_RESERVED = {"r", "dr", "rs", "r0", "r1", "y", "Fx", "Fr", "Jr", "hold", "inputs", "context"}
 #: ... and those of the functions of a model whose dependent speeds are eliminated
-DEPENDENT_RESERVED = {"u_dep", "dep_status", "AD", "b", "Mfull", "Fvec", "gamma"}
+DEPENDENT_RESERVED = {"u_dep", "dep_status", "AD", "b", "Mfull", "Fvec", "gamma", "AD_dep", "scale_dep"}
 
 
 @dataclass(frozen=True)

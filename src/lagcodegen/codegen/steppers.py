@@ -146,8 +146,8 @@ def stepper_context(system, names, real: str, methods: list) -> dict:
                         "int judge_only",
                         "One step of the method numbered `method` under the singularity monitor of "
                         f"{prefix}_simulate, for a caller's own loop (work: {prefix.upper()}_WORK_SIZE values, "
-                        "kept between calls; first: 1 after the state or parameters were set; judge_only: judge "
-                        "x, the last state reached, and leave it as it is)"
+                        "kept between calls; first: 1 after the state or parameters were set; a failed step leaves "
+                        "x as it was; judge_only: judge x, the last state reached, and leave it as it is)"
                         + ("; r1 NULL holds r over the step" if system.inputs else "") + "; returns a status code.",
                         [])
     context["step_monitored_decl"] = monitored["decl"]
