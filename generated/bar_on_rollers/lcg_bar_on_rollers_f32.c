@@ -558,13 +558,14 @@ static int lcg_bar_on_rollers_f32_step_any(int method, float t, float *x, const 
     float *gauge;
     int status, verdict;
     if (judge_only) {  /* NaN until the first stage writes x's pivots: a first stage that fails leaves them */
+        int g;
         switch (method) {
         case 0: gauge = scratch + 10; break;
         case 1: gauge = scratch + 10; break;
         case 2: gauge = scratch + 16; break;
         default: return LCG_UNKNOWN_METHOD;
         }
-        for (verdict = 0; verdict < 1; ++verdict) gauge[verdict] = 0.0F / 0.0F;
+        for (g = 0; g < 1; ++g) gauge[g] = 0.0F / 0.0F;
     }
     switch (method) {
     case 0: status = lcg_bar_on_rollers_f32_rk4_step(t, x, p, h, scratch, scratch + 10); gauge = scratch + 10; break;

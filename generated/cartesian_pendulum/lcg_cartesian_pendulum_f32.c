@@ -522,11 +522,12 @@ static int lcg_cartesian_pendulum_f32_step_any(int method, float t, float *x, co
     float *gauge;
     int status, verdict;
     if (judge_only) {  /* NaN until the first stage writes x's pivots: a first stage that fails leaves them */
+        int g;
         switch (method) {
         case 0: gauge = scratch + 20; break;
         default: return LCG_UNKNOWN_METHOD;
         }
-        for (verdict = 0; verdict < 5; ++verdict) gauge[verdict] = 0.0F / 0.0F;
+        for (g = 0; g < 5; ++g) gauge[g] = 0.0F / 0.0F;
     }
     switch (method) {
     case 0: status = lcg_cartesian_pendulum_f32_rk4_step(t, x, p, h, scratch, scratch + 20); gauge = scratch + 20; break;

@@ -651,13 +651,14 @@ static int lcg_centrifugal_governor_step_any(int method, double t, double *x, co
     double *gauge;
     int status, verdict;
     if (judge_only) {  /* NaN until the first stage writes x's pivots: a first stage that fails leaves them */
+        int g;
         switch (method) {
         case 0: gauge = scratch + 10; break;
         case 1: gauge = scratch + 10; break;
         case 2: gauge = scratch + 16; break;
         default: return LCG_UNKNOWN_METHOD;
         }
-        for (verdict = 0; verdict < 1; ++verdict) gauge[verdict] = 0.0 / 0.0;
+        for (g = 0; g < 1; ++g) gauge[g] = 0.0 / 0.0;
     }
     switch (method) {
     case 0: status = lcg_centrifugal_governor_rk4_step(t, x, p, h, scratch, scratch + 10); gauge = scratch + 10; break;

@@ -627,13 +627,14 @@ static int lcg_disk_spring_rod_f32_step_any(int method, float t, float *x, const
     float *gauge;
     int status, verdict;
     if (judge_only) {  /* NaN until the first stage writes x's pivots: a first stage that fails leaves them */
+        int g;
         switch (method) {
         case 0: gauge = scratch + 20; break;
         case 1: gauge = scratch + 26; break;
         case 2: gauge = scratch + 48; break;
         default: return LCG_UNKNOWN_METHOD;
         }
-        for (verdict = 0; verdict < 2; ++verdict) gauge[verdict] = 0.0F / 0.0F;
+        for (g = 0; g < 2; ++g) gauge[g] = 0.0F / 0.0F;
     }
     switch (method) {
     case 0: status = lcg_disk_spring_rod_f32_rk4_step(t, x, p, h, scratch, scratch + 20); gauge = scratch + 20; break;

@@ -654,11 +654,12 @@ static int lcg_four_bar_step_any(int method, double t, double *x, const double *
     double *gauge;
     int status, verdict;
     if (judge_only) {  /* NaN until the first stage writes x's pivots: a first stage that fails leaves them */
+        int g;
         switch (method) {
         case 0: gauge = scratch + 30; break;
         default: return LCG_UNKNOWN_METHOD;
         }
-        for (verdict = 0; verdict < 11; ++verdict) gauge[verdict] = 0.0 / 0.0;
+        for (g = 0; g < 11; ++g) gauge[g] = 0.0 / 0.0;
     }
     switch (method) {
     case 0: status = lcg_four_bar_rk4_step(t, x, p, h, scratch, scratch + 30); gauge = scratch + 30; break;

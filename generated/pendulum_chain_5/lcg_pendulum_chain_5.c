@@ -1322,13 +1322,14 @@ static int lcg_pendulum_chain_5_step_any(int method, double t, double *x, const 
     double *gauge;
     int status, verdict;
     if (judge_only) {  /* NaN until the first stage writes x's pivots: a first stage that fails leaves them */
+        int g;
         switch (method) {
         case 0: gauge = scratch + 50; break;
         case 1: gauge = scratch + 110; break;
         case 2: gauge = scratch + 240; break;
         default: return LCG_UNKNOWN_METHOD;
         }
-        for (verdict = 0; verdict < 5; ++verdict) gauge[verdict] = 0.0 / 0.0;
+        for (g = 0; g < 5; ++g) gauge[g] = 0.0 / 0.0;
     }
     switch (method) {
     case 0: status = lcg_pendulum_chain_5_rk4_step(t, x, p, h, scratch, scratch + 50); gauge = scratch + 50; break;

@@ -687,11 +687,12 @@ static int lcg_slider_crank_f32_step_any(int method, float t, float *x, const fl
     float *gauge;
     int status, verdict;
     if (judge_only) {  /* NaN until the first stage writes x's pivots: a first stage that fails leaves them */
+        int g;
         switch (method) {
         case 0: gauge = scratch + 50; break;
         default: return LCG_UNKNOWN_METHOD;
         }
-        for (verdict = 0; verdict < 29; ++verdict) gauge[verdict] = 0.0F / 0.0F;
+        for (g = 0; g < 29; ++g) gauge[g] = 0.0F / 0.0F;
     }
     switch (method) {
     case 0: status = lcg_slider_crank_f32_rk4_step(t, x, p, h, scratch, scratch + 50); gauge = scratch + 50; break;

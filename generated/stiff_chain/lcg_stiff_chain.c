@@ -670,13 +670,14 @@ static int lcg_stiff_chain_step_any(int method, double t, double *x, const doubl
     double *gauge;
     int status, verdict;
     if (judge_only) {  /* NaN until the first stage writes x's pivots: a first stage that fails leaves them */
+        int g;
         switch (method) {
         case 0: gauge = scratch + 30; break;
         case 1: gauge = scratch + 48; break;
         case 2: gauge = scratch + 96; break;
         default: return LCG_UNKNOWN_METHOD;
         }
-        for (verdict = 0; verdict < 3; ++verdict) gauge[verdict] = 0.0 / 0.0;
+        for (g = 0; g < 3; ++g) gauge[g] = 0.0 / 0.0;
     }
     switch (method) {
     case 0: status = lcg_stiff_chain_rk4_step(t, x, p, h, scratch, scratch + 30); gauge = scratch + 30; break;

@@ -169,12 +169,13 @@ class KernelWriter:
         inputs, unused = self._input_lines(kernel, reads_inputs)
         if touches_state and "x" in unused:
             unused.remove("x")
-        after, later = set(index), []
-        before = []
+        reads_dependent, before, later = set(index), [], []
         for s, expr in kernel.temporaries:
-            (later if expr.free_symbols & after else before).append((s, expr))
-            if later and later[-1][0] is s:
-                after.add(s)
+            if expr.free_symbols & reads_dependent:
+                later.append((s, expr))
+                reads_dependent.add(s)
+            else:
+                before.append((s, expr))
         lines = [f"/* Inputs ({len(inputs)}) */"] + inputs + [f"(void){arg};" for arg in unused]
         lines.append(f"/* Intermediate terms ({len(kernel.temporaries)}), total ops {kernel.ops_after} "
                      f"(before CSE {kernel.ops_before}); first those that do not read the dependent speeds */")
