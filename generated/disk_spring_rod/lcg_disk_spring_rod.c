@@ -588,7 +588,7 @@ int lcg_disk_spring_rod_step_implicit_midpoint(double *t, double *x, const doubl
  * 2 LDL^T pivots of M; no extra
  * factorization), and the driver compares them with the previous accepted state's and the run's
  * first state's; the run's final state, which no later step judges, by one more step on a copy
- * (lcg_disk_spring_rod_judge_last). A pivot that changes by more than 100x (either way) in one step, or falls
+ * (for explicit methods only its first stage, the dynamics at that state; lcg_disk_spring_rod_judge_last). A pivot that changes by more than 100x (either way) in one step, or falls
  * below 1e-8 of its initial value, is reported as
  * LCG_SINGULAR_MASS_MATRIX (a pivot of M) or LCG_SINGULAR_CONSTRAINTS (of A M^-1 A^T).
  * ------------------------------------------------------------------------------------------ */
@@ -635,6 +635,16 @@ static int lcg_disk_spring_rod_step_any(int method, double t, double *x, const d
         default: return LCG_UNKNOWN_METHOD;
         }
         for (g = 0; g < 2; ++g) gauge[g] = 0.0 / 0.0;
+        switch (method) {
+        case 0:
+            {  /* an explicit method's first stage is the dynamics at x itself: only that stage runs */
+                double rate[4];
+                status = lcg_disk_spring_rod_dynamics(t, x, p, rate, rate + 2, gauge);
+                if (status != LCG_OK && gauge[0] != gauge[0]) return status;
+                return lcg_disk_spring_rod_gauge_check(gauge, history, first);
+            }
+        default: break;
+        }
     }
     switch (method) {
     case 0: status = lcg_disk_spring_rod_rk4_step(t, x, p, h, scratch, scratch + 20); gauge = scratch + 20; break;
@@ -653,9 +663,10 @@ static int lcg_disk_spring_rod_step_any(int method, double t, double *x, const d
     return status;
 }
 
-/* The monitor's verdict on a run's last step, which no later step judges: one more step from a
- * copy of the final state x_end writes that state's pivots to the gauge (its result is dropped),
- * and they are judged against the state before. LCG_OK for a run of no steps. */
+/* The monitor's verdict on a run's last step, which no later step judges: one more step (explicit
+ * methods: only its first stage) from a copy of the final state x_end writes that state's pivots
+ * to the gauge (its result is dropped), and they are judged against the state before. LCG_OK for
+ * a run of no steps. */
 static int lcg_disk_spring_rod_judge_last(int method, double t, const double *x_end, const double *p,
                                    double h, double *scratch, double *history, long n_steps)
 {

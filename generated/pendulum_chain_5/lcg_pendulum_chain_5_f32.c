@@ -1283,7 +1283,7 @@ int lcg_pendulum_chain_5_f32_step_implicit_midpoint(float *t, float *x, const fl
  * 5 LDL^T pivots of M; no extra
  * factorization), and the driver compares them with the previous accepted state's and the run's
  * first state's; the run's final state, which no later step judges, by one more step on a copy
- * (lcg_pendulum_chain_5_f32_judge_last). A pivot that changes by more than 100x (either way) in one step, or falls
+ * (for explicit methods only its first stage, the dynamics at that state; lcg_pendulum_chain_5_f32_judge_last). A pivot that changes by more than 100x (either way) in one step, or falls
  * below 1e-4 of its initial value, is reported as
  * LCG_SINGULAR_MASS_MATRIX (a pivot of M) or LCG_SINGULAR_CONSTRAINTS (of A M^-1 A^T).
  * ------------------------------------------------------------------------------------------ */
@@ -1330,6 +1330,16 @@ static int lcg_pendulum_chain_5_f32_step_any(int method, float t, float *x, cons
         default: return LCG_UNKNOWN_METHOD;
         }
         for (g = 0; g < 5; ++g) gauge[g] = 0.0F / 0.0F;
+        switch (method) {
+        case 0:
+            {  /* an explicit method's first stage is the dynamics at x itself: only that stage runs */
+                float rate[10];
+                status = lcg_pendulum_chain_5_f32_dynamics(t, x, p, rate, rate + 5, gauge);
+                if (status != LCG_OK && gauge[0] != gauge[0]) return status;
+                return lcg_pendulum_chain_5_f32_gauge_check(gauge, history, first);
+            }
+        default: break;
+        }
     }
     switch (method) {
     case 0: status = lcg_pendulum_chain_5_f32_rk4_step(t, x, p, h, scratch, scratch + 50); gauge = scratch + 50; break;
@@ -1348,9 +1358,10 @@ static int lcg_pendulum_chain_5_f32_step_any(int method, float t, float *x, cons
     return status;
 }
 
-/* The monitor's verdict on a run's last step, which no later step judges: one more step from a
- * copy of the final state x_end writes that state's pivots to the gauge (its result is dropped),
- * and they are judged against the state before. LCG_OK for a run of no steps. */
+/* The monitor's verdict on a run's last step, which no later step judges: one more step (explicit
+ * methods: only its first stage) from a copy of the final state x_end writes that state's pivots
+ * to the gauge (its result is dropped), and they are judged against the state before. LCG_OK for
+ * a run of no steps. */
 static int lcg_pendulum_chain_5_f32_judge_last(int method, float t, const float *x_end, const float *p,
                                    float h, float *scratch, float *history, long n_steps)
 {

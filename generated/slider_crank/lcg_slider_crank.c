@@ -609,7 +609,7 @@ int lcg_slider_crank_step_rk4(double *t, double *x, const double *p, double h, d
  * 5 LDL^T pivots of M, the 4 Cholesky pivots of A M^-1 A^T, then A itself; no extra
  * factorization), and the driver compares them with the previous accepted state's and the run's
  * first state's; the run's final state, which no later step judges, by one more step on a copy
- * (lcg_slider_crank_judge_last). A pivot that changes by more than 100x (either way) in one step, or falls
+ * (for explicit methods only its first stage, the dynamics at that state; lcg_slider_crank_judge_last). A pivot that changes by more than 100x (either way) in one step, or falls
  * below 1e-8 of its initial value, is reported as
  * LCG_SINGULAR_MASS_MATRIX (a pivot of M) or LCG_SINGULAR_CONSTRAINTS (of A M^-1 A^T); so is a
  * sign change of det(A_prev A^T): a singular value of A passed through zero between two steps,
@@ -693,6 +693,16 @@ static int lcg_slider_crank_step_any(int method, double t, double *x, const doub
         default: return LCG_UNKNOWN_METHOD;
         }
         for (g = 0; g < 29; ++g) gauge[g] = 0.0 / 0.0;
+        switch (method) {
+        case 0:
+            {  /* an explicit method's first stage is the dynamics at x itself: only that stage runs */
+                double rate[10];
+                status = lcg_slider_crank_dynamics(t, x, p, rate, rate + 5, gauge);
+                if (status != LCG_OK && gauge[0] != gauge[0]) return status;
+                return lcg_slider_crank_gauge_check(gauge, history, first);
+            }
+        default: break;
+        }
     }
     switch (method) {
     case 0: status = lcg_slider_crank_rk4_step(t, x, p, h, scratch, scratch + 50); gauge = scratch + 50; break;
@@ -709,9 +719,10 @@ static int lcg_slider_crank_step_any(int method, double t, double *x, const doub
     return status;
 }
 
-/* The monitor's verdict on a run's last step, which no later step judges: one more step from a
- * copy of the final state x_end writes that state's pivots to the gauge (its result is dropped),
- * and they are judged against the state before. LCG_OK for a run of no steps. */
+/* The monitor's verdict on a run's last step, which no later step judges: one more step (explicit
+ * methods: only its first stage) from a copy of the final state x_end writes that state's pivots
+ * to the gauge (its result is dropped), and they are judged against the state before. LCG_OK for
+ * a run of no steps. */
 static int lcg_slider_crank_judge_last(int method, double t, const double *x_end, const double *p,
                                    double h, double *scratch, double *history, long n_steps)
 {

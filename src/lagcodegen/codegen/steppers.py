@@ -74,7 +74,7 @@ def stepper_context(system, names, real: str, methods: list) -> dict:
                 raise EmitError(f"method {name!r} needs the {output!r} output; add it to outputs")
         # part (LCG_BUILD_PART): explicit steppers compile beside the drivers, the others apart
         record = {"name": scheme.name, "id": number, "title": scheme.title or scheme.name, "order": scheme.order,
-                  "part": 1 if kind == KIND_EXPLICIT else 2}
+                  "part": 1 if kind == KIND_EXPLICIT else 2, "explicit": kind == KIND_EXPLICIT}
         if kind == KIND_EXPLICIT:
             context["tableaux"].append(_tableau_record(scheme, real))
             record["work"] = (scheme.stages + 1) * N + G
@@ -138,6 +138,7 @@ def stepper_context(system, names, real: str, methods: list) -> dict:
             "int", f"{prefix}_table_inputs", f"void *context, {real} t, const {real} *x, {real} *r",
             f"An input function ({prefix}_input_fn) interpolating linearly in the {prefix}_input_table "
             "that context points to.", []))
+    context["explicit_ids"] = [m["id"] for m in context["methods"] if m["explicit"]]
     context["simulate_decl"] = driver["decl"]
     context["exported"].append(driver)
     held = f"const {real} *r, const {real} *r1, " if system.inputs else ""
