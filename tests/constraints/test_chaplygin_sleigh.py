@@ -27,14 +27,16 @@ VALUES = {"m": 2.0, "I": 0.3, "a": 0.4}
 t = me.dynamicsymbols._t
 
 
-def sleigh(**extra) -> Model:
+def sleigh(arm: str = "a", **extra) -> Model:
+    """The sleigh; ``arm`` names the lever arm's symbol (its value stays VALUES["a"])."""
     x, y, theta = me.dynamicsymbols("x y theta")
-    m, I, a = sp.symbols("m I a", positive=True)
+    m, I, a = sp.symbols(f"m I {arm}", positive=True)
     xc, yc = x + a * sp.cos(theta), y + a * sp.sin(theta)
     T = m * (xc.diff(t) ** 2 + yc.diff(t) ** 2) / 2 + I * theta.diff(t) ** 2 / 2
     blade = -x.diff(t) * sp.sin(theta) + y.diff(t) * sp.cos(theta)
+    values = {"m": VALUES["m"], "I": VALUES["I"], arm: VALUES["a"]}
     return Model("chaplygin_sleigh", [x, y, theta], [m, I, a], kinetic_energy=T, motion_constraints=[blade],
-                 parameter_values=VALUES, **extra)
+                 parameter_values=values, **extra)
 
 
 def closed_form(times, v0, w0):

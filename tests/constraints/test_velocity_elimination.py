@@ -343,14 +343,7 @@ def test_a_symbol_named_like_the_kernels_own_locals_is_renamed(sleighs, tmp_path
     """The inline solve's locals (AD_dep, scale_dep, u_dep) are reserved: a sleigh whose lever arm
     is called so compiles, and its rhs equals the sleigh's with the usual name (second route: the
     same model; a BuildError 'conflicting type qualifiers' before the names were reserved)."""
-    x, y, theta = me.dynamicsymbols("x y theta")
-    m, inertia, arm = sp.symbols(f"m I {name}", positive=True)
-    xc, yc = x + arm * sp.cos(theta), y + arm * sp.sin(theta)
-    T = m * (xc.diff(t) ** 2 + yc.diff(t) ** 2) / 2 + inertia * theta.diff(t) ** 2 / 2
-    blade = -x.diff(t) * sp.sin(theta) + y.diff(t) * sp.cos(theta)
-    renamed = Model("chaplygin_sleigh", [x, y, theta], [m, inertia, arm], kinetic_energy=T,
-                    motion_constraints=[blade], dependent_speeds=[y],
-                    parameter_values={"m": VALUES["m"], "I": VALUES["I"], name: VALUES["a"]})
+    renamed = sleigh(arm=name, dependent_speeds=[Y])
     system = compile_model(renamed, methods=("rk4",), cache_dir=tmp_path)
     state = np.array([0.1, -0.2, 0.7, 0.4, 1.3])  # x, y, theta, x', theta'
     # the names order the CSE's terms, so rounding may differ in the last place

@@ -144,31 +144,21 @@ class KernelWriter:
         solve fails (else their NaN values carry on). ``dependent_solve``: lines that leave them
         in ``u_dep`` from the kernel's own temporaries, run after the temporaries that do not read
         them (in place of a call of ``<prefix>_dependent_speeds``)."""
-        if dependent_solve is not None and any(s in kernel.symbols for s in self.names.dependent_index or {}):
-            return self._split_head(kernel, touches_state, reads_inputs, dependent_solve)
+        index = self.names.dependent_index or {}
+        split = dependent_solve is not None and any(s in kernel.symbols for s in index)
         inputs, unused = self._input_lines(kernel, reads_inputs)
         if touches_state and "x" in unused:
             unused.remove("x")
-        dependent = self._dependent_lines(kernel, on_singular)
-        if dependent and "x" in unused:
-            unused.remove("x")
-        if dependent and "p" in unused:
-            unused.remove("p")
-        if dependent and "t" in unused:
-            unused.remove("t")
-        lines = [f"/* Inputs ({len(inputs)}) */"] + inputs + dependent
-        lines += [f"(void){arg};" for arg in unused]
-        lines.append(f"/* Intermediate terms ({len(kernel.temporaries)}), total ops {kernel.ops_after} "
-                     f"(before CSE {kernel.ops_before}) */")
-        return lines + self._temporary_lines(kernel.temporaries)
-
-    def _split_head(self, kernel: ReducedKernel, touches_state: bool, reads_inputs: bool, solve: list) -> list:
-        """`head` with the dependent speeds solved between the temporaries that do not read them
-        and those that do (CSE orders each after what it reads, so both groups keep their order)."""
-        index = self.names.dependent_index
-        inputs, unused = self._input_lines(kernel, reads_inputs)
-        if touches_state and "x" in unused:
-            unused.remove("x")
+        dependent = [] if split else self._dependent_lines(kernel, on_singular)
+        if dependent:  # the call of <prefix>_dependent_speeds reads t, x and p
+            unused = [arg for arg in unused if arg not in ("t", "x", "p")]
+        lines = [f"/* Inputs ({len(inputs)}) */"] + inputs + dependent + [f"(void){arg};" for arg in unused]
+        summary = (f"/* Intermediate terms ({len(kernel.temporaries)}), total ops {kernel.ops_after} "
+                   f"(before CSE {kernel.ops_before})")
+        if not split:
+            return lines + [summary + " */"] + self._temporary_lines(kernel.temporaries)
+        # the dependent speeds solved between the temporaries that do not read them and those that
+        # do (CSE orders each after what it reads, so both groups keep their order)
         reads_dependent, before, later = set(index), [], []
         for s, expr in kernel.temporaries:
             if expr.free_symbols & reads_dependent:
@@ -176,10 +166,8 @@ class KernelWriter:
                 reads_dependent.add(s)
             else:
                 before.append((s, expr))
-        lines = [f"/* Inputs ({len(inputs)}) */"] + inputs + [f"(void){arg};" for arg in unused]
-        lines.append(f"/* Intermediate terms ({len(kernel.temporaries)}), total ops {kernel.ops_after} "
-                     f"(before CSE {kernel.ops_before}); first those that do not read the dependent speeds */")
-        lines += self._temporary_lines(before) + solve
+        lines += [summary + "; first those that do not read the dependent speeds */"]
+        lines += self._temporary_lines(before) + dependent_solve
         lines += [f"const {self.real} {self.names.symbols[s]} = u_dep[{i}];" for s, i in index.items()
                   if s in kernel.symbols]
         lines.append("/* the intermediate terms that read the dependent speeds */")
