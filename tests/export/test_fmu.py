@@ -327,3 +327,37 @@ def test_a_failed_step_leaves_the_last_accepted_state(polar_fmu, fmi_version):
     read = slave.getReal if fmi_version == "2.0" else slave.getFloat64
     assert read([refs["r"]])[0] == pytest.approx(0.0005, abs=1e-12)
     slave.freeInstance()
+
+
+@pytest.mark.parametrize("name, value", [("m1", float("nan")), ("l2", float("inf")), ("q1", float("nan"))])
+def test_a_state_or_parameter_that_is_not_finite_is_refused_by_value_reference(pendulum_fmu, fmi_version, name,
+                                                                               value):
+    """A parameter set to NaN between two doSteps used to be taken, and the next step stopped with
+    'the mass matrix is singular', which names neither the variable nor the value; a state set to
+    NaN during initialization likewise. The setter now refuses it and names the value reference."""
+    from fmpy import extract
+    from fmpy.simulation import instantiate_fmu
+
+    description = read_model_description(str(pendulum_fmu))
+    ref = next(v.valueReference for v in description.modelVariables if v.name == name)
+    messages = []
+
+    def logger(*args):  # a logger of our own (see test_a_failed_step_leaves_the_last_accepted_state)
+        messages.append(repr(args))
+
+    fmu = instantiate_fmu(extract(str(pendulum_fmu)), description, fmi_type="CoSimulation", logger=logger)
+    set_value = fmu.setReal if fmi_version == "2.0" else fmu.setFloat64
+    if fmi_version == "2.0":
+        fmu.setupExperiment(startTime=0.0)
+    fmu.enterInitializationMode()
+    if name.startswith("q"):  # states may be set only while initializing
+        with pytest.raises(Exception, match="Set"):
+            set_value([ref], [value])
+    else:
+        fmu.exitInitializationMode()
+        fmu.doStep(currentCommunicationPoint=0.0, communicationStepSize=H)
+        with pytest.raises(Exception, match="Set"):
+            set_value([ref], [value])
+    assert any(f"value reference {ref} (a state or parameter) cannot be set to" in m and "not finite" in m
+               for m in messages), messages
+    fmu.freeInstance()
