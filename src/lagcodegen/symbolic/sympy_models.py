@@ -18,7 +18,8 @@ import sympy as sp
 import sympy.physics.mechanics as me
 
 from ..model import TIME, Model, ModelError, check_well_defined
-from .equations import assemble, check_mass_matrix, make_substitution, plain_symbols
+from .equations import assemble, check_mass_matrix, input_symbols, make_substitution, plain_symbols
+from .kane_terms import kane_terms
 
 
 def derive_from_sympy(model: Model):
@@ -49,19 +50,28 @@ def derive_from_sympy(model: Model):
             motion = list(method._k_nh * sp.Matrix(method.u) + method._f_nh)
             if method._k_dnh == method._k_nh:  # sympy's acceleration constraints A ud + f_dnh = 0: its own d/dt
                 motion_rates = method._f_dnh
-            method = _every_speed_independent(method, kindiff)
     q, u = plain_symbols(coords, speeds, model.parameters)
     renamed = make_substitution(coords, speeds, q, u, "sympy model", inputs=model.inputs)
     zero = {a: 0 for a in auxiliary} | {a.diff(TIME): 0 for a in auxiliary}
 
     def to_plain(expr, what):  # auxiliary speeds are zero in the equations of motion
         return renamed(sp.sympify(expr).xreplace(zero) if zero and expr is not None else expr, what)
+    terms = None
+    if isinstance(method, me.KanesMethod):
+        plain_inputs = input_symbols(model.inputs)
+        known = set(model.parameters) | set(plain_inputs) | set(q) | set(u) | {TIME}
+        terms = kane_terms(method, kindiff, to_plain, motion, inputs=plain_inputs, known=known)
+        if terms is None and n_dependent:
+            method = _every_speed_independent(method, kindiff)
     qdot_table = {} if isinstance(method, me.LagrangesMethod) else {
         c.diff(TIME): k for c, k in zip(coords, kin_dynamic)}
     n_u = len(speeds)
-    # Lagrange I: without lambda's columns
-    M = to_plain(method.mass_matrix[:, :n_u].xreplace(qdot_table), "mass matrix")
-    F = to_plain(method.forcing.xreplace(qdot_table), "forcing")
+    if terms is not None:
+        M, F = terms.mass_matrix, terms.forcing
+        motion_rates = terms.motion_rates if motion else None
+    else:  # Lagrange I: without lambda's columns
+        M = to_plain(method.mass_matrix[:, :n_u].xreplace(qdot_table), "mass matrix")
+        F = to_plain(method.forcing.xreplace(qdot_table), "forcing")
     K = to_plain(kin_dynamic, "kinematic equations")
     for what, matrix in (("mass matrix", M), ("forcing", F), ("kinematic equations", K)):
         for (i, j), entry in sorted(matrix.todok().items()):
