@@ -127,6 +127,10 @@ NAMES = {x: "x", y: "y", z: "p[2]"}
     (x**-2, "1.0/(x*x)", "1.0F/(x*x)"),
     (sp.sqrt(x), "sqrt(x)", "sqrtf(x)"),
     (1 / sp.sqrt(x), "1.0/sqrt(x)", "1.0F/sqrtf(x)"),
+    (x**sp.Rational(3, 2), "x*sqrt(x)", "x*sqrtf(x)"),
+    (x**sp.Rational(-3, 2), "1.0/(x*sqrt(x))", "1.0F/(x*sqrtf(x))"),
+    ((x + y)**sp.Rational(-5, 2), "1.0/((x + y)*(x + y)*sqrt(x + y))", "1.0F/((x + y)*(x + y)*sqrtf(x + y))"),
+    (x**sp.Rational(11, 2), "pow(x, (11.0/2.0))", "powf(x, (11.0F/2.0F))"),
     (x**y, "pow(x, y)", "powf(x, y)"),
     (x**7, "pow(x, 7)", "powf(x, 7)"),
     ((x + y)**2, "(x + y)*(x + y)", "(x + y)*(x + y)"),
@@ -179,6 +183,7 @@ def test_printing_is_deterministic():
 
 EXPRS = [
     x**2, x**3, x**-1, x**-3, sp.sqrt(y), 1 / sp.sqrt(y), x**y.subs(y, sp.Rational(3, 2)),
+    x**sp.Rational(-3, 2), (x + y)**sp.Rational(5, 2) / y**sp.Rational(-7, 2),
     y**x, sp.Rational(1, 3) * x - sp.Rational(2, 7), y / x**2, y / (x**2 * z), -x**2,
     (x + y)**3 / (y - z)**2, sp.sin(x) * sp.cos(y)**2 + sp.tan(z), sp.exp(-x / 3) * sp.log(y),
     sp.Abs(z), sp.sign(z), sp.sign(x - sp.Rational(7, 10)) + 2 * sp.sign(x), sp.Max(x, y, z), sp.Min(x, z),

@@ -224,7 +224,9 @@ class CPrinter(C99CodePrinter):
     1. An unmapped symbol raises ``ValueError("symbol x has no C name")``.
     2. A function without a ``<math.h>`` equivalent raises ``ValueError`` naming it.
     3. Integer powers up to :data:`MUL_POW_MAX` are products, ``x**-n`` is ``1.0/(...)``,
-       ``x**(1/2)`` is ``sqrt``, ``x**(-1/2)`` is ``1.0/sqrt``; other powers call ``pow``.
+       ``x**(1/2)`` is ``sqrt``, ``x**(-1/2)`` is ``1.0/sqrt``, ``x**(3/2)`` is ``x*sqrt(x)`` and
+       ``x**(-3/2)`` is ``1.0/(x*sqrt(x))`` (half-integer powers up to ``MUL_POW_MAX + 1/2``); other
+       powers call ``pow``.
     4. Rationals are exact quotients of literals in the scalar type, ``(1.0/3.0)``;
        ``pi``, ``E`` and friends are literals (no ``M_PI``: it is not C99).
     5. Output is deterministic and on one line.
@@ -349,6 +351,13 @@ class CPrinter(C99CodePrinter):
             return f"sqrt{suffix}({self._print(b)})"
         if e == -sympy.S.Half:
             return f"{one}/sqrt{suffix}({self._print(b)})"
+        if e.is_Rational and e.q == 2 and abs(e.p) <= 2 * MUL_POW_MAX + 1:
+            # x**(n/2) = x**((n-1)/2) * sqrt(x): one sqrt and products instead of a pow call (pow
+            # costs several sqrts' time; the Whipple bicycle's contact geometry has x**(-3/2))
+            whole = self._product(b, (abs(int(e.p)) - 1) // 2)
+            if whole is not None:
+                root = f"{whole}*sqrt{suffix}({self._print(b)})"
+                return root if e > 0 else f"{one}/({root})"
         if e == sympy.Rational(1, 3):
             return f"cbrt{suffix}({self._print(b)})"
         return f"pow{suffix}({self._print(b)}, {self._print(e)})"
