@@ -539,12 +539,15 @@ static int lcg_elastic_pendulum_f32_symplectic_euler_step(float t, float *x, con
         float acc = 0.0F;
         for (k = 0; k < 2; ++k) acc += spare[i * 2 + k] * v[k];
         momentum[i] = acc;
-        x[i] += h * v[i];
+        xs[i] = x[i] + h * v[i];  /* q+ in xs until the step succeeds: a failed step leaves x as it was */
     }
-    lcg_elastic_pendulum_f32_momentum(t + h, x, p, next, G);
-    if (lcg_elastic_pendulum_f32_spd_factor(next, 2, 0.0F) != 1) return lcg_elastic_pendulum_f32_pivot_failure(x);
+    lcg_elastic_pendulum_f32_momentum(t + h, xs, p, next, G);
+    if (lcg_elastic_pendulum_f32_spd_factor(next, 2, 0.0F) != 1) return lcg_elastic_pendulum_f32_pivot_failure(xs);
     lcg_elastic_pendulum_f32_spd_solve(next, momentum, 2);
-    for (i = 0; i < 2; ++i) x[2 + i] = momentum[i];
+    for (i = 0; i < 2; ++i) {
+        x[i] = xs[i];
+        x[2 + i] = momentum[i];
+    }
     return LCG_OK;
 }
 #endif /* LCG_BUILD_PART != 1 */

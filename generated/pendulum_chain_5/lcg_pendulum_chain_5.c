@@ -1234,12 +1234,15 @@ static int lcg_pendulum_chain_5_symplectic_euler_step(double t, double *x, const
         double acc = 0.0;
         for (k = 0; k < 5; ++k) acc += spare[i * 5 + k] * v[k];
         momentum[i] = acc;
-        x[i] += h * v[i];
+        xs[i] = x[i] + h * v[i];  /* q+ in xs until the step succeeds: a failed step leaves x as it was */
     }
-    lcg_pendulum_chain_5_momentum(t + h, x, p, next, G);
-    if (lcg_pendulum_chain_5_spd_factor(next, 5, 0.0) != 1) return lcg_pendulum_chain_5_pivot_failure(x);
+    lcg_pendulum_chain_5_momentum(t + h, xs, p, next, G);
+    if (lcg_pendulum_chain_5_spd_factor(next, 5, 0.0) != 1) return lcg_pendulum_chain_5_pivot_failure(xs);
     lcg_pendulum_chain_5_spd_solve(next, momentum, 5);
-    for (i = 0; i < 5; ++i) x[5 + i] = momentum[i];
+    for (i = 0; i < 5; ++i) {
+        x[i] = xs[i];
+        x[5 + i] = momentum[i];
+    }
     return LCG_OK;
 }
 #endif /* LCG_BUILD_PART != 1 */

@@ -476,12 +476,15 @@ static int lcg_rolling_wheels_symplectic_euler_step(double t, double *x, const d
         double acc = 0.0;
         for (k = 0; k < 1; ++k) acc += spare[i * 1 + k] * v[k];
         momentum[i] = acc;
-        x[i] += h * v[i];
+        xs[i] = x[i] + h * v[i];  /* q+ in xs until the step succeeds: a failed step leaves x as it was */
     }
-    lcg_rolling_wheels_momentum(t + h, x, p, next, G);
-    if (lcg_rolling_wheels_spd_factor(next, 1, 0.0) != 1) return lcg_rolling_wheels_pivot_failure(x);
+    lcg_rolling_wheels_momentum(t + h, xs, p, next, G);
+    if (lcg_rolling_wheels_spd_factor(next, 1, 0.0) != 1) return lcg_rolling_wheels_pivot_failure(xs);
     lcg_rolling_wheels_spd_solve(next, momentum, 1);
-    for (i = 0; i < 1; ++i) x[1 + i] = momentum[i];
+    for (i = 0; i < 1; ++i) {
+        x[i] = xs[i];
+        x[1 + i] = momentum[i];
+    }
     return LCG_OK;
 }
 #endif /* LCG_BUILD_PART != 1 */

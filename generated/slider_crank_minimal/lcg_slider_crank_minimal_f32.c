@@ -660,12 +660,15 @@ static int lcg_slider_crank_minimal_f32_symplectic_euler_step(float t, float *x,
         float acc = 0.0F;
         for (k = 0; k < 1; ++k) acc += spare[i * 1 + k] * v[k];
         momentum[i] = acc;
-        x[i] += h * v[i];
+        xs[i] = x[i] + h * v[i];  /* q+ in xs until the step succeeds: a failed step leaves x as it was */
     }
-    lcg_slider_crank_minimal_f32_momentum(t + h, x, p, next, G);
-    if (lcg_slider_crank_minimal_f32_spd_factor(next, 1, 0.0F) != 1) return lcg_slider_crank_minimal_f32_pivot_failure(x);
+    lcg_slider_crank_minimal_f32_momentum(t + h, xs, p, next, G);
+    if (lcg_slider_crank_minimal_f32_spd_factor(next, 1, 0.0F) != 1) return lcg_slider_crank_minimal_f32_pivot_failure(xs);
     lcg_slider_crank_minimal_f32_spd_solve(next, momentum, 1);
-    for (i = 0; i < 1; ++i) x[1 + i] = momentum[i];
+    for (i = 0; i < 1; ++i) {
+        x[i] = xs[i];
+        x[1 + i] = momentum[i];
+    }
     return LCG_OK;
 }
 #endif /* LCG_BUILD_PART != 1 */

@@ -582,12 +582,15 @@ static int lcg_stiff_chain_f32_symplectic_euler_step(float t, float *x, const fl
         float acc = 0.0F;
         for (k = 0; k < 3; ++k) acc += spare[i * 3 + k] * v[k];
         momentum[i] = acc;
-        x[i] += h * v[i];
+        xs[i] = x[i] + h * v[i];  /* q+ in xs until the step succeeds: a failed step leaves x as it was */
     }
-    lcg_stiff_chain_f32_momentum(t + h, x, p, next, G);
-    if (lcg_stiff_chain_f32_spd_factor(next, 3, 0.0F) != 1) return lcg_stiff_chain_f32_pivot_failure(x);
+    lcg_stiff_chain_f32_momentum(t + h, xs, p, next, G);
+    if (lcg_stiff_chain_f32_spd_factor(next, 3, 0.0F) != 1) return lcg_stiff_chain_f32_pivot_failure(xs);
     lcg_stiff_chain_f32_spd_solve(next, momentum, 3);
-    for (i = 0; i < 3; ++i) x[3 + i] = momentum[i];
+    for (i = 0; i < 3; ++i) {
+        x[i] = xs[i];
+        x[3 + i] = momentum[i];
+    }
     return LCG_OK;
 }
 #endif /* LCG_BUILD_PART != 1 */

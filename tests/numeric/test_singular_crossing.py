@@ -181,6 +181,24 @@ def test_a_final_state_on_the_singular_set_is_not_ok(polar, method):
     assert run["r"][-1] == 0.0
 
 
+@pytest.mark.parametrize("method", ("symplectic_euler", "rk4"))
+def test_a_step_function_that_fails_leaves_t_and_x_as_they_were(polar, method):
+    """The exported ``<prefix>_step_<method>`` from r = 1/8, r' = -1 with h = 1/8: the line r = 1/8 - t
+    (exact, above) reaches r = 0 at the step's end, where M = diag(m, m r^2) is singular. Symplectic
+    Euler factors M(q+) last; it used to write q+ into x before that factorization failed, so a
+    caller's own loop saw r = 0 with the step reported failed. Now x and t stay as they were, as for
+    RK4, whose last stage fails there."""
+    ffi, lib = polar.ffi, polar.lib
+    step = getattr(lib, f"{polar.layout.prefix}_step_{method}")
+    x = ffi.new("double[]", [0.125, 0.3, -1.0, 0.0])
+    t = ffi.new("double *", 2.0)
+    p = ffi.new("double[]", [1.0, 0.0, 1.0, 0.0])  # m, k, l0, g: the free particle
+    work = ffi.new("double[]", 4096)
+    status = step(t, x, p, 0.125, work)
+    assert Status(status) == Status.SINGULAR_MASS_MATRIX
+    assert list(x) == [0.125, 0.3, -1.0, 0.0] and t[0] == 2.0
+
+
 @pytest.mark.parametrize("kernel", ("lanes", "scalar"))
 def test_sweeps_judge_a_final_state_on_the_singular_set(polar, kernel):
     """As above in both sweep kernels (Euler): r0 = 1 lands on r = 0 in its last step; r0 = 0.5
