@@ -174,3 +174,43 @@ def test_a_longer_chain_gains_more():
     theirs = sp.cse(list(M) + list(F))
     assert count_operations([e for _, e in ours[0]] + ours[1]) < 0.7 * count_operations(
         [e for _, e in theirs[0]] + theirs[1])
+
+
+def test_a_mass_that_changes_keeps_sympys_equations():
+    """sympy's Kane adds m' v to the inertia force of a mass that changes with q or t (a review found
+    -2 m q u^2 missing from a particle of mass m (1 + q^2)); this formulation steps aside for it."""
+    q, u = me.dynamicsymbols("q u")
+    m, k = sp.symbols("m k")
+    N = me.ReferenceFrame("N")
+    O = me.Point("O")
+    O.set_vel(N, 0)
+    P = O.locatenew("P", q * N.x)
+    P.set_vel(N, u * N.x)
+    for mass in (m * (1 + q ** 2), m * (1 + t)):
+        kane = me.KanesMethod(N, [q], [u], kd_eqs=[q.diff() - u])
+        kane.kanes_equations([me.Particle("p", P, mass)], [(P, -k * q * N.x)])
+        assert kane_terms(kane, kane.kindiffdict(), plain_route(kane)[2]) is None
+        eom = derive_equations(Model("varying_mass", parameters=[k, m], sympy_model=kane))
+        expected = plain_route(kane)[2](kane.forcing[0], "F")  # sympy's, in the route's plain symbols
+        assert sp.simplify(eom.forcing[0] - expected) == 0
+
+
+def test_a_quaternion_frame_keeps_sympys_equations():
+    """A quaternion's direction cosines are a rotation only on |q| = 1; a translating body's mass
+    centre velocity written in the body frame then weighs m |q|^4 off it, where sympy's dot products
+    in N give m (found in review). Such a frame keeps sympy's equations: M[v, v] = m at any q."""
+    q0, q1, q2, q3, x = me.dynamicsymbols("q0:4 x")
+    w1, w2, w3, v = me.dynamicsymbols("w1:4 v")
+    m, J = sp.symbols("m J")
+    N = me.ReferenceFrame("N")
+    B = N.orientnew("B", "Quaternion", [q0, q1, q2, q3])
+    B.set_ang_vel(N, w1 * B.x + w2 * B.y + w3 * B.z)
+    G = me.Point("O").locatenew("G", x * N.x)
+    G.set_vel(N, v * N.x)
+    Q = sp.Matrix([[-q1, -q2, -q3], [q0, -q3, q2], [q3, q0, -q1], [-q2, q1, q0]])
+    kd = list(sp.Matrix([q0, q1, q2, q3]).diff() - Q * sp.Matrix([w1, w2, w3]) / 2) + [x.diff() - v]
+    kane = me.KanesMethod(N, [q0, q1, q2, q3, x], [w1, w2, w3, v], kd_eqs=kd)
+    kane.kanes_equations([me.RigidBody("b", G, B, m, (me.inertia(B, J, 2 * J, 3 * J), G))], [])
+    assert kane_terms(kane, kane.kindiffdict(), plain_route(kane)[2]) is None
+    eom = derive_equations(Model("quaternion_body", parameters=[J, m], sympy_model=kane))
+    assert eom.mass_matrix[3, 3] == m

@@ -19,15 +19,17 @@ V_r . (m a) are multiplied out. Here the same equations are formed from shared t
 The results are full expressions again (the shared terms substituted back), so the kernels' CSE
 finds the sharing: the Whipple bicycle's dynamics kernel takes 1677 operations after CSE instead of
 2212 from sympy's equations, and its RK4 step about 1.8x less time (2026-11-26). A model this does
-not write (an acceleration set with a2pt_theory or set_acc, which sympy reads as given; an inertia
-that changes with the state; a velocity that reads an input; a frame with no orientation to the
-inertial one; a load term sympy's expansion cancels and this one keeps) gets None, and the route
-keeps sympy's own equations.
+not write gets None, and the route keeps sympy's own equations: an acceleration set with
+a2pt_theory or set_acc (sympy reads it as given); a mass or an inertia that changes with the state;
+a direction cosine matrix that is a rotation only on a constraint (a quaternion's off |q| = 1, where
+these components and sympy's dot products part); a velocity that reads an input; a frame with no
+orientation to the inertial one; a load term sympy's expansion cancels and this one keeps.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numpy as np
 import sympy as sp
 import sympy.physics.mechanics as me
 
@@ -91,13 +93,40 @@ class _Formulation:
         self.inputs = set(inputs)
         self.method = method
         self.rows: list = []  # velocity-level expressions, plain
+        self.rotations: dict = {}  # frame -> its DCM to the inertial frame is a rotation everywhere
+        self.random = np.random.default_rng(20261126)
 
     def plain(self, vector, frame, what) -> list:
+        if isinstance(vector, me.Vector):
+            for other in {frame} | {f for _, f in vector.args}:
+                self.check_rotation(other)
         try:
             components = vector.to_matrix(frame) if isinstance(vector, me.Vector) else sp.Matrix([0, 0, 0])
         except ValueError as error:  # no orientation path to the frame
             raise _NotCovered(str(error)) from None
         return list(self.to_plain(components.xreplace(self.kindiff), what))
+
+    def check_rotation(self, frame) -> None:
+        """Components change frames here where sympy's dot products may not: that is the same only
+        while every direction cosine matrix is a rotation. A quaternion's (or a DCM given by the
+        user) is one only on |q| = 1, and off it sympy's equations differ from these, so such a
+        model keeps sympy's. Checked numerically at a point of random coordinates and parameters."""
+        if frame in self.rotations:
+            return
+        try:
+            dcm = frame.dcm(self.frame)
+        except ValueError as error:  # no orientation path to the frame
+            raise _NotCovered(str(error)) from None
+        functions = sorted(me.find_dynamicsymbols(dcm), key=str)
+        symbols = sorted(dcm.free_symbols, key=str)
+        values = dict(zip(functions + symbols, self.random.uniform(-1.7, 1.7, len(functions) + len(symbols))))
+        try:
+            matrix = np.array(dcm.xreplace(values).evalf(), dtype=float)
+        except TypeError:  # not a number at that point
+            raise _NotCovered(f"the orientation of {frame} has no value at a sample point") from None
+        self.rotations[frame] = bool(np.allclose(matrix @ matrix.T, np.eye(3), atol=1e-9))
+        if not self.rotations[frame]:
+            raise _NotCovered(f"the direction cosines of {frame} are a rotation only on a constraint")
 
     def add_rows(self, values) -> slice:
         start = len(self.rows)
@@ -130,7 +159,10 @@ class _Formulation:
             else:
                 E, inertia, omega, omega_frame = N, None, None, None
             velocity = self.add_rows(self.plain(body.masscenter.vel(N), E, f"the velocity of {body.masscenter}"))
-            bodies.append((body, E, _Body(sp.sympify(self.to_plain(body.mass, f"the mass of {body}")), inertia,
+            mass = sp.sympify(self.to_plain(body.mass, f"the mass of {body}"))
+            if mass.free_symbols & self.state_symbols():  # sympy's Kane adds m' v for it
+                raise _NotCovered(f"the mass of {body} changes with the state or time")
+            bodies.append((body, E, _Body(mass, inertia,
                                           velocity, omega, omega_frame, sp.zeros(3, 1), sp.zeros(3, 1))))
         loose = []  # loads not at a mass centre or on a body's frame: (rows of the point or frame's velocity, vector)
         for point_or_frame, vector in method.loads or ():
