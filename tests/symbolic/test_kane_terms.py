@@ -16,7 +16,7 @@ import pytest
 import sympy as sp
 import sympy.physics.mechanics as me
 
-from lagcodegen import Model, derive_equations
+from lagcodegen import Model, ModelError, derive_equations
 from lagcodegen.codegen.reduce import count_operations
 from lagcodegen.symbolic.equations import make_substitution, plain_symbols
 from lagcodegen.symbolic.kane_terms import kane_terms
@@ -214,3 +214,21 @@ def test_a_quaternion_frame_keeps_sympys_equations():
     assert kane_terms(kane, kane.kindiffdict(), plain_route(kane)[2]) is None
     eom = derive_equations(Model("quaternion_body", parameters=[J, m], sympy_model=kane))
     assert eom.mass_matrix[3, 3] == m
+
+
+def test_an_inertia_with_a_one_sided_product_is_refused_naming_the_body():
+    """A product of inertia written on one side only makes sympy's own mass matrix unsymmetric
+    (found in review): no LDL^T of M reads that as written, so the model is refused."""
+    q1, u1 = me.dynamicsymbols("q1 u1")
+    m, Jx, Jz, Jxz = sp.symbols("m Jx Jz Jxz")
+    N = me.ReferenceFrame("N")
+    B = N.orientnew("B", "Axis", [q1, N.y])
+    O = me.Point("O")
+    O.set_vel(N, 0)
+    G = O.locatenew("G", B.x)
+    G.v2pt_theory(O, N, B)
+    lopsided = Jx * (B.x | B.x) + Jx * (B.y | B.y) + Jz * (B.z | B.z) + Jxz * (B.x | B.z)
+    kane = me.KanesMethod(N, q_ind=[q1], u_ind=[u1], kd_eqs=[q1.diff() - u1])
+    kane.kanes_equations([me.RigidBody("crank", G, B, m, (lopsided, G))], [])
+    with pytest.raises(ModelError, match=r"inertia of rigid body crank is not symmetric.*entry \(0, 2\) is Jxz"):
+        derive_equations(Model("lopsided", parameters=[m, Jx, Jz, Jxz], sympy_model=kane))

@@ -58,6 +58,7 @@ def derive_from_sympy(model: Model):
         return renamed(sp.sympify(expr).xreplace(zero) if zero and expr is not None else expr, what)
     terms = None
     if isinstance(method, me.KanesMethod):
+        _check_symmetric_inertias(method, model)
         plain_inputs = input_symbols(model.inputs)
         known = set(model.parameters) | set(plain_inputs) | set(q) | set(u) | {TIME}
         terms = kane_terms(method, kindiff, to_plain, motion, inputs=plain_inputs, known=known)
@@ -126,6 +127,25 @@ def _with_reactions(eom, model: Model, equations, coords, speeds, auxiliary, to_
                                  f"force {force}")
     return replace(eom, reactions=unknowns, reaction_equations=sp.ImmutableMatrix(rows),
                    reaction_accelerations=accelerations)
+
+
+def _check_symmetric_inertias(method, model: Model) -> None:
+    """A rigid body's inertia dyadic with a product of inertia written on one side only
+    (``Ixz*(B.x|B.z)`` without ``B.z|B.x``) gives Kane's equations a mass matrix that is not
+    symmetric, which no factorization of M reads as written."""
+    for body in method.bodies or ():
+        if not isinstance(body, me.RigidBody):
+            continue
+        dyadic = body.central_inertia
+        frames = sorted({v.args[0][1] for term in dyadic.args for v in term[1:] if v.args}, key=str) or [body.frame]
+        I = dyadic.to_matrix(frames[0])
+        for i in range(3):
+            for j in range(i + 1, 3):
+                if sp.expand(I[i, j] - I[j, i]) != 0:
+                    raise ModelError(f"model {model.name!r}: the inertia of rigid body {body} is not symmetric: in "
+                                     f"frame {frames[0]}, entry ({i}, {j}) is {I[i, j]} and entry ({j}, {i}) is "
+                                     f"{I[j, i]}; write each product of inertia on both sides, as "
+                                     "sympy.physics.mechanics.inertia() does")
 
 
 def _every_speed_independent(method, kindiff):
