@@ -132,18 +132,24 @@ def test_a_set_acceleration_keeps_sympys_equations():
     assert kane_terms(kane, kane.kindiffdict(), plain_route(kane)[2]) is None
 
 
-def test_an_inertia_that_changes_with_the_state_keeps_sympys_equations():
+def crank(inertia_of, axis: str = "z"):
+    """A body on a crank turning about the inertial ``axis``; its central inertia
+    ``inertia_of(B, q1)`` in the crank's frame B."""
     q1, u1 = me.dynamicsymbols("q1 u1")
-    m, J = sp.symbols("m J")
     N = me.ReferenceFrame("N")
-    A = N.orientnew("A", "Axis", [q1, N.z])
+    B = N.orientnew("B", "Axis", [q1, getattr(N, axis)])
     O = me.Point("O")
     O.set_vel(N, 0)
-    G = O.locatenew("G", A.x)
-    G.v2pt_theory(O, N, A)
-    body = me.RigidBody("b", G, A, m, (me.inertia(A, J * (1 + q1 ** 2), J, J), G))
+    G = O.locatenew("G", B.x)
+    G.v2pt_theory(O, N, B)
     kane = me.KanesMethod(N, q_ind=[q1], u_ind=[u1], kd_eqs=[q1.diff() - u1])
-    kane.kanes_equations([body], [])
+    kane.kanes_equations([me.RigidBody("crank", G, B, sp.Symbol("m"), (inertia_of(B, q1), G))], [])
+    return kane
+
+
+def test_an_inertia_that_changes_with_the_state_keeps_sympys_equations():
+    J = sp.Symbol("J")
+    kane = crank(lambda B, q1: me.inertia(B, J * (1 + q1 ** 2), J, J))
     assert kane_terms(kane, kane.kindiffdict(), plain_route(kane)[2]) is None
 
 
@@ -219,16 +225,7 @@ def test_a_quaternion_frame_keeps_sympys_equations():
 def test_an_inertia_with_a_one_sided_product_is_refused_naming_the_body():
     """A product of inertia written on one side only makes sympy's own mass matrix unsymmetric
     (found in review): no LDL^T of M reads that as written, so the model is refused."""
-    q1, u1 = me.dynamicsymbols("q1 u1")
     m, Jx, Jz, Jxz = sp.symbols("m Jx Jz Jxz")
-    N = me.ReferenceFrame("N")
-    B = N.orientnew("B", "Axis", [q1, N.y])
-    O = me.Point("O")
-    O.set_vel(N, 0)
-    G = O.locatenew("G", B.x)
-    G.v2pt_theory(O, N, B)
-    lopsided = Jx * (B.x | B.x) + Jx * (B.y | B.y) + Jz * (B.z | B.z) + Jxz * (B.x | B.z)
-    kane = me.KanesMethod(N, q_ind=[q1], u_ind=[u1], kd_eqs=[q1.diff() - u1])
-    kane.kanes_equations([me.RigidBody("crank", G, B, m, (lopsided, G))], [])
+    kane = crank(lambda B, q1: Jx * (B.x | B.x) + Jx * (B.y | B.y) + Jz * (B.z | B.z) + Jxz * (B.x | B.z), axis="y")
     with pytest.raises(ModelError, match=r"inertia of rigid body crank is not symmetric.*entry \(0, 2\) is Jxz"):
         derive_equations(Model("lopsided", parameters=[m, Jx, Jz, Jxz], sympy_model=kane))
