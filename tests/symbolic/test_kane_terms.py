@@ -229,3 +229,13 @@ def test_an_inertia_with_a_one_sided_product_is_refused_naming_the_body():
     kane = crank(lambda B, q1: Jx * (B.x | B.x) + Jx * (B.y | B.y) + Jz * (B.z | B.z) + Jxz * (B.x | B.z), axis="y")
     with pytest.raises(ModelError, match=r"inertia of rigid body crank is not symmetric.*entry \(0, 2\) is Jxz"):
         derive_equations(Model("lopsided", parameters=[m, Jx, Jz, Jxz], sympy_model=kane))
+
+
+def test_a_nan_mass_is_refused_naming_the_entry():
+    """Hostile input: a mass of nan made the shared-terms assembly raise a bare TypeError (sympy's
+    nan times a Matrix is nan); sympy's equations then name the mass matrix entry, as before."""
+    kane = crank(lambda B, q1: me.inertia(B, 1, 1, 1))
+    kane.bodies[0].mass = sp.nan
+    kane.kanes_equations(kane.bodies, [])
+    with pytest.raises(ModelError, match=r"mass matrix, entry \(0, 0\) is nan"):
+        derive_equations(Model("nan_mass", parameters=[], sympy_model=kane))

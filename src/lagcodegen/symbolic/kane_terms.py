@@ -65,7 +65,7 @@ def kane_terms(method: me.KanesMethod, kindiff: dict, to_plain, motion=(), input
     as a product that is zero only after simplification, and then sympy's equations are kept."""
     try:
         terms = _Formulation(method, kindiff, to_plain, inputs).equations(motion)
-    except (_NotCovered, ModelError, ValueError):  # sympy's own equations then say what is wrong, if anything
+    except (_NotCovered, ModelError, ValueError, TypeError):  # sympy's own equations say what is wrong, if anything
         return None
     if known is not None:
         for matrix in (terms.mass_matrix, terms.forcing, terms.motion_rates):
