@@ -35,7 +35,7 @@ import sympy.physics.mechanics as me
 
 from ..model import ModelError
 
-__all__ = ["KaneTerms", "kane_terms"]
+__all__ = ["KaneTerms", "kane_terms", "dyadic_frames"]
 
 
 @dataclass(frozen=True)
@@ -95,6 +95,9 @@ class _Formulation:
         self.rows: list = []  # velocity-level expressions, plain
         self.rotations: dict = {}  # frame -> its DCM to the inertial frame is a rotation everywhere
         self.random = np.random.default_rng(20261126)
+        self.q = list(to_plain(sp.Matrix(list(method.q)), "coordinates"))
+        self.u = list(to_plain(sp.Matrix(list(method.u)), "speeds"))
+        self.state = set(self.q) | set(self.u) | {me.dynamicsymbols._t}
 
     def plain(self, vector, frame, what) -> list:
         if isinstance(vector, me.Vector):
@@ -135,11 +138,10 @@ class _Formulation:
 
     def inertia_frame(self, body):
         """The frame the central inertia is written in (constant there), for a rigid body."""
-        dyadic = body.central_inertia
-        frames = {vector.args[0][1] for term in dyadic.args for vector in term[1:] if vector.args}
+        frames = dyadic_frames(body.central_inertia)
         if len(frames) > 1:
             raise _NotCovered(f"the inertia of {body} is written in several frames")
-        return frames.pop() if frames else body.frame
+        return frames[0] if frames else body.frame
 
     def equations(self, motion) -> KaneTerms:
         method, N = self.method, self.frame
@@ -152,7 +154,7 @@ class _Formulation:
             if isinstance(body, me.RigidBody):
                 E = self.inertia_frame(body)
                 inertia = self.to_plain(body.central_inertia.to_matrix(E), f"the inertia of {body}")
-                if inertia.free_symbols & self.state_symbols():
+                if inertia.free_symbols & self.state:
                     raise _NotCovered(f"the inertia of {body} changes with the state")
                 omega = self.add_rows(self.plain(body.frame.ang_vel_in(N), E, f"the angular velocity of {body}"))
                 omega_frame = self.add_rows(self.plain(E.ang_vel_in(N), E, f"the angular velocity of {E}"))
@@ -160,7 +162,7 @@ class _Formulation:
                 E, inertia, omega, omega_frame = N, None, None, None
             velocity = self.add_rows(self.plain(body.masscenter.vel(N), E, f"the velocity of {body.masscenter}"))
             mass = sp.sympify(self.to_plain(body.mass, f"the mass of {body}"))
-            if mass.free_symbols & self.state_symbols():  # sympy's Kane adds m' v for it
+            if mass.free_symbols & self.state:  # sympy's Kane adds m' v for it
                 raise _NotCovered(f"the mass of {body} changes with the state or time")
             bodies.append((body, E, _Body(mass, inertia,
                                           velocity, omega, omega_frame, sp.zeros(3, 1), sp.zeros(3, 1))))
@@ -189,16 +191,8 @@ class _Formulation:
         constraints = self.add_rows([self.to_plain(w, f"velocity constraint {i}") for i, w in enumerate(motion)])
         return self.assemble([b for _, _, b in bodies], loose, constraints)
 
-    def state_symbols(self) -> set:
-        plain_q = self.to_plain(sp.Matrix(list(self.method.q)), "coordinates")
-        plain_u = self.to_plain(sp.Matrix(list(self.method.u)), "speeds")
-        return set(plain_q) | set(plain_u) | {me.dynamicsymbols._t}
-
     def assemble(self, bodies, loose, constraints) -> KaneTerms:
-        method = self.method
-        t = me.dynamicsymbols._t
-        q = list(self.to_plain(sp.Matrix(list(method.q)), "coordinates"))
-        u = list(self.to_plain(sp.Matrix(list(method.u)), "speeds"))
+        method, t, q, u = self.method, me.dynamicsymbols._t, self.q, self.u
         qd = list(self.to_plain(sp.Matrix([self.kindiff[c.diff(t)] for c in method.q]), "kinematic equations"))
         for i, row in enumerate(self.rows):
             if row.free_symbols & self.inputs:
@@ -289,3 +283,8 @@ class _Formulation:
             full[symbol] = expr.xreplace(full)
         return KaneTerms(mass_matrix=M.xreplace(full), forcing=F.xreplace(full),
                          motion_rates=motion_rates.xreplace(full))
+
+
+def dyadic_frames(dyadic) -> list:
+    """The frames a dyadic's terms are written in (sorted by name; empty for a zero dyadic)."""
+    return sorted({vector.args[0][1] for term in dyadic.args for vector in term[1:] if vector.args}, key=str)
