@@ -329,12 +329,9 @@ def test_a_failed_step_leaves_the_last_accepted_state(polar_fmu, fmi_version):
     slave.freeInstance()
 
 
-@pytest.mark.parametrize("name, value", [("m1", float("nan")), ("l2", float("inf")), ("q1", float("nan"))])
-def test_a_state_or_parameter_that_is_not_finite_is_refused_by_value_reference(pendulum_fmu, fmi_version, name,
-                                                                               value):
-    """A parameter set to NaN between two doSteps used to be taken, and the next step stopped with
-    'the mass matrix is singular', which names neither the variable nor the value; a state set to
-    NaN during initialization likewise. The setter now refuses it and names the value reference."""
+def refused_set_messages(pendulum_fmu, fmi_version, name, value, initializing):
+    """The log of a Co-Simulation pendulum whose setter refuses ``name = value`` (while initializing,
+    or between two doSteps)."""
     from fmpy import extract
     from fmpy.simulation import instantiate_fmu
 
@@ -350,14 +347,29 @@ def test_a_state_or_parameter_that_is_not_finite_is_refused_by_value_reference(p
     if fmi_version == "2.0":
         fmu.setupExperiment(startTime=0.0)
     fmu.enterInitializationMode()
-    if name.startswith("q"):  # states may be set only while initializing
-        with pytest.raises(Exception, match="Set"):
-            set_value([ref], [value])
-    else:
+    if not initializing:
         fmu.exitInitializationMode()
         fmu.doStep(currentCommunicationPoint=0.0, communicationStepSize=H)
-        with pytest.raises(Exception, match="Set"):
-            set_value([ref], [value])
+    with pytest.raises(Exception, match="Set"):
+        set_value([ref], [value])
+    fmu.freeInstance()
+    return ref, messages
+
+
+@pytest.mark.parametrize("name, value", [("m1", float("nan")), ("l2", float("inf")), ("q1", float("nan"))])
+def test_a_state_or_parameter_that_is_not_finite_is_refused_by_value_reference(pendulum_fmu, fmi_version, name,
+                                                                               value):
+    """A parameter set to NaN between two doSteps used to be taken, and the next step stopped with
+    'the mass matrix is singular', which names neither the variable nor the value; a state set to
+    NaN during initialization likewise. The setter now refuses it and names the value reference."""
+    # states may be set only while initializing
+    ref, messages = refused_set_messages(pendulum_fmu, fmi_version, name, value, initializing=name.startswith("q"))
     assert any(f"value reference {ref} (a state or parameter) cannot be set to" in m and "not finite" in m
                for m in messages), messages
-    fmu.freeInstance()
+
+
+def test_a_state_set_after_initialization_is_refused_as_not_settable(pendulum_fmu, fmi_version):
+    """A finite state set between two doSteps: refused with the setter's other reason (FMI: states of a
+    Co-Simulation FMU are set only while initializing)."""
+    _, messages = refused_set_messages(pendulum_fmu, fmi_version, "q1", 0.5, initializing=False)
+    assert any("not settable in this mode" in m for m in messages), messages
