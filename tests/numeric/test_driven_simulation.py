@@ -183,6 +183,65 @@ def test_inputs_by_name_merge_tables_and_constants(tmp_path):
     assert run["x"][-1] == pytest.approx(0.5, abs=1e-12)
 
 
+def rk4_ramped(r_at, h, n_steps):
+    """Numpy RK4 with the stages of step k on the line from r_at(t_k) to r_at(t_k + h) (a first-order hold)."""
+    y, out = np.zeros(2), [np.zeros(2)]
+    for k in range(n_steps):
+        a, b = r_at(k * h), r_at((k + 1) * h)
+        f = numpy_rhs(lambda t, y: a + (b - a) * t)
+        k1 = f(0, y)
+        k2 = f(0.5, y + h / 2 * k1)
+        k3 = f(0.5, y + h / 2 * k2)
+        k4 = f(1, y + h * k3)
+        y = y + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+        out.append(y)
+    return np.array(out)
+
+
+def test_an_array_per_stride_on_a_first_order_hold_is_the_line_between_rows(oscillator):
+    # found by review: the rows were held for stride - 1 steps and ramped within the last step only
+    h, n, stride = 0.01, 200, 10
+    r = np.cos(np.arange(n // stride + 1))
+    run = simulate(oscillator, {"x": 0.0}, t_end=n * h, h=h, stride=stride, inputs=r, hold="foh")
+    line = lambda t: np.interp(t, np.arange(r.size) * stride * h, r)  # noqa: E731
+    np.testing.assert_allclose(run.x, rk4_ramped(line, h, n)[::stride], rtol=1e-12, atol=1e-13)
+    np.testing.assert_array_equal(run["F"], r)
+
+
+def test_a_float_kernel_reads_row_k_at_step_k(tmp_path, driven_oscillator):
+    # found by review: float step times t0 + (float)k h fell below the sample times the rows were
+    # keyed to (computed in double), and a third of the steps read the row before
+    system = compile_model(driven_oscillator("driven_oscillator_rows_f32"), methods=("rk4",), precision="float",
+                           cache_dir=tmp_path)
+    h, n = 0.01, 300
+    r = np.arange(n, dtype=float)
+    for stride in (1, 10):
+        rows = r[::stride]
+        run = simulate(system, {"x": 0.0}, t_end=n * h, h=h, stride=stride, inputs=rows, check_stability=False)
+        np.testing.assert_array_equal(run["F"][:-1], rows)
+    run = simulate(system, {"x": 0.0}, t_end=n * h, h=h, inputs=r, check_stability=False)
+    exact = rk4_held(r, h, n)
+    assert np.abs(run.x - exact).max() < 1e-5 * np.abs(exact).max()  # float rounding, not a late row
+    swept = sweep(system, {"k": [K]}, x0={"x": 0.0}, t_end=n * h, h=h, inputs=r)
+    assert np.abs(swept.x_final[0] - exact[-1]).max() < 1e-5 * np.abs(exact).max()
+
+
+def test_solve_reference_takes_an_array_as_the_step_function_it_is(oscillator):
+    # found by review: the array's repeated knot times made empty segments (a TypeError). The exact
+    # zero-order-hold map x+ = e^(A h) x + A^-1 (e^(A h) - I) B r_k is the reference.
+    from scipy.linalg import expm
+    h, n = 0.05, 40
+    r = np.sin(np.arange(n))
+    A, B = np.array([[0.0, 1.0], [-K / M, -C / M]]), np.array([0.0, 1.0 / M])
+    Phi = expm(A * h)
+    Gamma = np.linalg.solve(A, (Phi - np.eye(2)) @ B)
+    exact = [np.zeros(2)]
+    for k in range(n):
+        exact.append(Phi @ exact[-1] + Gamma * r[k])
+    t, ours = solve_reference(oscillator, {"x": 0.0}, np.arange(n + 1) * h, inputs=r)
+    np.testing.assert_allclose(ours, np.array(exact), rtol=0, atol=1e-11)
+
+
 def test_the_jacobian_gives_df_dr(oscillator):
     J, B = jacobian(oscillator, [0.1, -0.2], [M, K, C], r=[0.3], with_inputs=True)
     np.testing.assert_allclose(J, [[0, 1], [-K / M, -C / M]], atol=1e-15)

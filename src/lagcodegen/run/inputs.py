@@ -2,8 +2,9 @@
 
 `simulate` and `sweep` accept the inputs as a constant, an array sampled at every step (or every
 stride), a table (t_i, r_i) interpolated linearly in C, or a Python callable of (t, x). The first
-three become one `InputTable` of knots (an array becomes a step function: every value repeated at
-the next sample's time, so a zero-order hold reads it exactly); the callable becomes a cffi
+three become one `InputTable` of knots (an array of samples becomes a step function under a
+zero-order hold, each row held until half a step before the next row's time, and the line through
+the rows under a first-order hold); the callable becomes a cffi
 callback (`CallableInputs`), a Python call per step. Every check names the input it refused.
 """
 from __future__ import annotations
@@ -44,6 +45,13 @@ class InputTable:
         w = (t - self.times[i]) / (self.times[i + 1] - self.times[i])
         return self.values[i] + w * (self.values[i + 1] - self.values[i])
 
+    def before(self, t: float) -> np.ndarray:
+        """The limit from the left at time t: at a jump, the value before it (as `at` elsewhere)."""
+        i = int(np.searchsorted(self.times, t, side="left"))
+        if i < len(self.times) and self.times[i] == t:
+            return self.values[i].copy()
+        return self.at(t)
+
 
 def hold_code(hold) -> int:
     """``"zoh"`` (held over each step) or ``"foh"`` (a ramp between the step's ends), as the C flag."""
@@ -52,8 +60,12 @@ def hold_code(hold) -> int:
     return HOLDS[hold.lower()]
 
 
-def resolve_inputs(layout, inputs, t0: float, h: float, n_steps: int, stride: int):
-    """``inputs`` as an `InputTable` or, for a callable, the callable itself (checked later, per call)."""
+def resolve_inputs(layout, inputs, t0: float, h: float, n_steps: int, stride: int, hold: str = "zoh",
+                   exact_jumps: bool = False):
+    """``inputs`` as an `InputTable` or, for a callable, the callable itself (checked later, per call).
+    An array of samples is a step function under ``hold="zoh"``, the line between them under "foh";
+    the step function jumps half a step before each sample time, which is where no driver's step
+    starts, or with ``exact_jumps`` at the sample times themselves (for a reader at any time)."""
     names = layout.inputs
     if not names:
         if inputs is not None:
@@ -80,7 +92,8 @@ def resolve_inputs(layout, inputs, t0: float, h: float, n_steps: int, stride: in
     if values.ndim != 2 or values.shape[1] != n_r:
         raise InputError(f"inputs of shape {values.shape} do not fit the {n_r} input(s) {', '.join(names)}: give "
                          f"{n_r} constant value(s), an array of shape (steps, {n_r}), a table (t, r) or a callable")
-    return _sampled(values, names, t0, h, n_steps, stride)
+    return _sampled(values, names, t0, h, n_steps, stride, linear=hold_code(hold) == HOLDS["foh"],
+                    margin=0.0 if exact_jumps else h / 2)
 
 
 def _is_table(inputs) -> bool:
@@ -116,8 +129,12 @@ def _constant(values: np.ndarray, names) -> InputTable:
     return InputTable(times=np.zeros(1), values=values)
 
 
-def _sampled(values: np.ndarray, names, t0: float, h: float, n_steps: int, stride: int) -> InputTable:
-    """An array per step (n_steps or n_steps + 1 rows) or per stride, as a step function."""
+def _sampled(values: np.ndarray, names, t0: float, h: float, n_steps: int, stride: int,
+             linear: bool = False, margin: float = 0.0) -> InputTable:
+    """An array per step (n_steps or n_steps + 1 rows) or per stride: under a zero-order hold a step
+    function, row k held until row k + 1 takes over ``margin`` before its time (half a step: a
+    driver's step time that rounds below the sample time, as in float, still reads row k + 1 there);
+    under a first-order hold the line between rows (the last row held when none is given for the end)."""
     rows = values.shape[0]
     spacing = None
     for every in dict.fromkeys((1, stride)):
@@ -133,8 +150,11 @@ def _sampled(values: np.ndarray, names, t0: float, h: float, n_steps: int, strid
                          f"expected {expected} rows")
     times = np.array([t0 + k * spacing * h for k in range(rows)])
     _finite(values, names, times)
-    # a step function: value k holds from knot k to knot k + 1, where value k + 1 takes over
-    step_times = np.repeat(times, 2)[1:]
+    if linear:
+        return InputTable(times=times, values=values)
+    # knots (t_0, r_0), (t_1 - margin, r_0), (t_1 - margin, r_1), (t_2 - margin, r_1), ...: the jumps to r_k
+    jumps = np.repeat(times[1:] - margin, 2)
+    step_times = np.concatenate([times[:1], jumps])
     step_values = np.repeat(values, 2, axis=0)[:-1]
     return InputTable(times=step_times, values=step_values)
 

@@ -250,7 +250,9 @@ def simulate(system: CompiledSystem, x0, t_end: float, h: float, method: str = "
     hold : {"zoh", "foh"}
         ``"zoh"``: the inputs read at a step's start are held over the step (the embedded
         convention); ``"foh"``: the stages take them on the line to the value at the step's end
-        (first-order hold; not for a callable, whose inputs depend on the state).
+        (first-order hold; not for a callable, whose inputs depend on the state). An array of rows
+        per step or per stride is a step function under "zoh" (row k over its step or stride) and
+        the line through the rows under "foh".
 
     Returns
     -------
@@ -288,8 +290,8 @@ def simulate(system: CompiledSystem, x0, t_end: float, h: float, method: str = "
     if system.layout.dependent_speeds:  # a singular constraint Jacobian at the start is bad input
         dependent_speeds(system, x, params, t0)
     _check_configuration(system, x, p, t0)
-    signal = resolve_inputs(system.layout, inputs, t0, h, n_steps, stride)
     ramp = hold_code(hold)
+    signal = resolve_inputs(system.layout, inputs, t0, h, n_steps, stride, hold)
     if ramp and callable(signal):
         raise ValueError("hold='foh' needs the inputs at the step's end before the step: not for a callable of "
                          "the state; use hold='zoh' or a table")
@@ -528,15 +530,20 @@ def solve_reference(system: CompiledSystem, x0, t_eval, *, params: Mapping | Non
     signal = None
     if layout.inputs or inputs is not None:
         h = (float(t_eval[-1]) - t0) / max(1, len(t_eval) - 1)
-        signal = resolve_inputs(layout, inputs, t0, h, max(1, len(t_eval) - 1), 1)
-    rhs = make_rhs(system, params, inputs=signal)
+        signal = resolve_inputs(layout, inputs, t0, h, max(1, len(t_eval) - 1), 1, exact_jumps=True)
+
+    def rhs_until(end):  # a segment's right-hand side: a table's inputs at its end are those before a jump there
+        if not isinstance(signal, InputTable):
+            return make_rhs(system, params, inputs=signal)
+        return make_rhs(system, params, inputs=lambda t, _: signal.before(t) if t >= end else signal.at(t))
     x = initial_state(system, x0)
     kwargs = {}
     if method in ("Radau", "BDF", "LSODA") and f"{layout.prefix}_jacobian" in layout.functions:
         p = parameter_vector(system, params)
         kwargs["jac"] = lambda t, y: jacobian(system, y, p, t, r=_signal_at(signal, t, y))
     breaks = signal.times if isinstance(signal, InputTable) and signal.times.size > 1 else ()
-    solution = _solve_between(solve_ivp, rhs, t0, float(t_eval[-1]), x, method, t_eval, rtol, atol, breaks, kwargs)
+    solution = _solve_between(solve_ivp, rhs_until, t0, float(t_eval[-1]), x, method, t_eval, rtol, atol, breaks,
+                              kwargs)
     return solution
 
 
@@ -548,16 +555,17 @@ def _signal_at(signal, t, x):
     return np.asarray(signal(t, np.asarray(x)), dtype=float).reshape(-1)
 
 
-def _solve_between(solve_ivp, rhs, t0, t_end, x, method, t_eval, rtol, atol, breaks, kwargs):
+def _solve_between(solve_ivp, rhs_until, t0, t_end, x, method, t_eval, rtol, atol, breaks, kwargs):
     """solve_ivp from knot to knot of the input table, so no step straddles a kink or jump of the
-    inputs (a step across one would lose the method's order there)."""
-    edges = [t0] + [b for b in breaks if t0 < b < t_end] + [t_end]
+    inputs (a step across one would lose the method's order there); ``rhs_until(b)`` is the
+    right-hand side of the segment that ends at b."""
+    edges = [t0] + sorted({float(b) for b in breaks if t0 < b < t_end}) + [t_end]
     times, states = [], []
     for k, (a, b) in enumerate(zip(edges[:-1], edges[1:])):
         last = k == len(edges) - 2
         inside = t_eval[(t_eval >= a) & ((t_eval <= b) if last else (t_eval < b))]
         points = np.union1d(inside, [b])
-        solution = solve_ivp(rhs, (a, b), x, method=method, t_eval=points, rtol=rtol, atol=atol, **kwargs)
+        solution = solve_ivp(rhs_until(b), (a, b), x, method=method, t_eval=points, rtol=rtol, atol=atol, **kwargs)
         if not solution.success:
             raise RuntimeError(f"reference solution ({method}) failed: {solution.message}")
         keep = np.isin(solution.t, inside)

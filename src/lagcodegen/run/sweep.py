@@ -227,7 +227,7 @@ def sweep(system: CompiledSystem, grid: Mapping | None = None, *, members: Mappi
         _check_sweep_size(layout, len(values), len(columns), n_steps, stride, trajectories, max_output_bytes)
     xs, ps = member_arrays(system, columns, values, x0, params)
     ramp = hold_code(hold)
-    tables = member_input_tables(system, columns, values, inputs, member_inputs, t0, h, n_steps, stride)
+    tables = member_input_tables(system, columns, values, inputs, member_inputs, t0, h, n_steps, stride, hold)
     held = tables is not None and tables[0].shape[1] == 1  # every member's inputs constant in time
     system = _kernel_system(system, method, project, kernel, tables is None or held)
     lanes = _lanes(system, method, project, kernel, tables is None or held)

@@ -114,7 +114,7 @@ def member_arrays(system: CompiledSystem, columns, values, x0, params):
 
 
 def member_input_tables(system: CompiledSystem, columns, values, inputs, member_inputs, t0: float, h: float,
-                        n_steps: int, stride: int):
+                        n_steps: int, stride: int, hold: str = "zoh"):
     """Per-member input tables (times (n_members, k), values (n_members, k, n_r)) for a driven model.
 
     A swept input (a column named like it) scales that input's base signal from ``inputs``
@@ -142,7 +142,7 @@ def member_input_tables(system: CompiledSystem, columns, values, inputs, member_
             if callable(spec) and not isinstance(spec, np.ndarray):
                 raise InputError(f"member_inputs[{m}] is a callable: sweeps take constants, arrays or tables")
             try:
-                tables.append(resolve_inputs(layout, spec, t0, h, n_steps, stride))
+                tables.append(resolve_inputs(layout, spec, t0, h, n_steps, stride, hold))
             except InputError as error:
                 raise InputError(f"member_inputs[{m}]: {error}") from None
     else:
@@ -154,7 +154,7 @@ def member_input_tables(system: CompiledSystem, columns, values, inputs, member_
         if callable(inputs) and not isinstance(inputs, np.ndarray):
             raise InputError("a sweep takes its inputs as constants, arrays or tables, not a callable")
         base = InputTable(np.zeros(1), np.ones((1, n_r))) if inputs is None else \
-            resolve_inputs(layout, inputs, t0, h, n_steps, stride)
+            resolve_inputs(layout, inputs, t0, h, n_steps, stride, hold)
         scale = np.ones((n_members, n_r))
         for j in swept:
             scale[:, layout.inputs.index(columns[j])] = values[:, j]
