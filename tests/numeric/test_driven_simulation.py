@@ -188,7 +188,7 @@ def rk4_ramped(r_at, h, n_steps):
     y, out = np.zeros(2), [np.zeros(2)]
     for k in range(n_steps):
         a, b = r_at(k * h), r_at((k + 1) * h)
-        f = numpy_rhs(lambda t, y: a + (b - a) * t)
+        f = numpy_rhs(lambda t, y, a=a, b=b: a + (b - a) * t)
         k1 = f(0, y)
         k2 = f(0.5, y + h / 2 * k1)
         k3 = f(0.5, y + h / 2 * k2)
@@ -310,6 +310,23 @@ def test_a_failing_callable_stops_with_a_status_and_keeps_the_run(oscillator, ca
     assert np.all(np.isfinite(run.x))
     import re
     assert re.search(detail, run.message) and any(re.search(detail, str(w.message)) for w in caught)
+
+
+@pytest.mark.parametrize("interrupt", [KeyboardInterrupt, SystemExit])
+def test_ctrl_c_in_a_feedback_callable_stops_the_run_and_is_raised(oscillator, interrupt):
+    # found by review: cffi printed the exception and took the callback's result as 0 (OK), so the run
+    # went on with the last input to its end with status OK, and Ctrl-C could not stop it
+    calls = []
+
+    def controller(t, x):
+        calls.append(t)
+        if t >= 0.5:
+            raise interrupt
+        return [-3.0 * x[0]]
+
+    with pytest.raises(interrupt):
+        simulate(oscillator, {"x": 1.0}, t_end=1.0, h=0.01, inputs=controller)
+    assert len(calls) == 51 and calls[-1] == pytest.approx(0.5)  # stopped at the first raise
 
 
 # -- measurements y = h(q, u, r, t) and sweeps over input amplitudes ------------------------------

@@ -226,7 +226,8 @@ class CallableInputs:
 
     It never raises into C: a wrong shape or an exception stops the run with
     ``Status.INPUT_FAILED``, a NaN or infinite value with ``NONFINITE_INPUT``; ``detail`` says
-    which input and why, ``error`` keeps the exception.
+    which input and why, ``error`` keeps the exception. A KeyboardInterrupt or SystemExit stops
+    the run the same way and is raised again once the C call returns (`reraise`).
     """
 
     def __init__(self, system, function: Callable):
@@ -240,6 +241,11 @@ class CallableInputs:
         self._ffi = ffi
         self.callback = ffi.callback(f"{system.layout.prefix}_input_fn", self._call)
 
+    def reraise(self) -> None:
+        """Raise a KeyboardInterrupt or SystemExit the callable raised (the run stopped at it)."""
+        if isinstance(self.error, (KeyboardInterrupt, SystemExit)):
+            raise self.error
+
     def _fail(self, code: Status, detail: str) -> int:
         self.detail = detail
         return int(code)
@@ -249,8 +255,8 @@ class CallableInputs:
         x = np.frombuffer(ffi.buffer(x_pointer, self.n_state * np.dtype(dtype).itemsize), dtype=dtype).copy()
         try:
             result = self.function(float(t), x)
-        except Exception as error:  # noqa: BLE001 - reported through the run's status, with the culprit
-            self.error = error
+        except BaseException as error:  # noqa: BLE001 - never into C (cffi would print it and return 0, OK)
+            self.error = error  # Ctrl-C or SystemExit: the run stops here and `reraise` raises it after
             return self._fail(Status.INPUT_FAILED, f"the input callable raised {type(error).__name__}: {error} "
                                                    f"at t = {float(t):g}")
         try:

@@ -392,6 +392,8 @@ def _run(system, x, p, t0, h, n_steps, stride, method, outputs, track_residuals,
     code = simulate_c(layout.methods.index(method), t0, c_pointer(system, x), c_pointer(system, p), h,
                       n_steps, stride, int(outputs["project"]), *driven, ptr(t_out), ptr(x_out), ptr(e_out),
                       ptr(p_out), ptr(r_out), ptr(m_out), ptr(work), steps_done)
+    if isinstance(source, CallableInputs):
+        source.reraise()
     status = Status(code)
     kept = n_out if status == Status.OK else steps_done[0] // stride + 1
     failed_step = None if status == Status.OK else steps_done[0] + 1
