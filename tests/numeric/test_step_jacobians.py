@@ -18,7 +18,7 @@ import sympy.physics.mechanics as me
 from lagcodegen import Model
 from lagcodegen.codegen.outputs import KernelError
 from lagcodegen.pipeline import compile_model
-from lagcodegen.run.simulate import simulate, step_jacobians
+from lagcodegen.run.simulate import jacobian, simulate, step_jacobians
 from lagcodegen.statics.state_space import linearize_state
 from lagcodegen.symbolic.derive import derive_equations
 
@@ -28,7 +28,7 @@ M, K, C = 1.0, 4.0, 0.5
 @pytest.fixture(scope="module")
 def oscillator(tmp_path_factory, driven_oscillator):
     return compile_model(driven_oscillator("jac_oscillator"), methods=("rk4", "euler", "dopri5"),
-                         outputs=("rhs", "step_jacobian"), cache_dir=tmp_path_factory.mktemp("jac"))
+                         outputs=("rhs", "jacobian", "step_jacobian"), cache_dir=tmp_path_factory.mktemp("jac"))
 
 
 @pytest.fixture(scope="module")
@@ -111,8 +111,30 @@ def test_step_jacobians_are_refused_where_they_do_not_exist(oscillator):
         compile_model(catalog.four_bar(), methods=("rk4",), outputs=("rhs", "step_jacobian"))
     with pytest.raises(ValueError, match="is driven by F: pass r="):
         step_jacobians(oscillator, [0.0, 0.0], [M, K, C], 0.1)
-    with pytest.raises(ValueError, match="r must be 1 finite value"):
+    with pytest.raises(ValueError, match="r 'F' must be finite, got nan"):
         step_jacobians(oscillator, [0.0, 0.0], [M, K, C], 0.1, r=[np.nan])
+
+
+@pytest.mark.parametrize("call, match", [
+    # found by review: p, and jacobian's x and r, went to C unchecked (reads past their ends)
+    (lambda s: step_jacobians(s, [0.5, 0.0], [M], 0.01, r=[0.0]), r"p needs 3 value\(s\) \(m, k, c\), got 1"),
+    (lambda s: step_jacobians(s, [0.5, 0.0], [M, K, C, 9.0], 0.01, r=[0.0]), "p needs 3 value.*got 4"),
+    (lambda s: step_jacobians(s, [0.5, 0.0], [M, np.nan, C], 0.01, r=[0.0]), "p 'k' must be finite"),
+    (lambda s: jacobian(s, [0.5], [M, K, C], r=[0.0]), r"x needs 2 value\(s\) \(x, x_d\), got 1"),
+    (lambda s: jacobian(s, [0.5, 0.0], [M, K], r=[0.0]), "p needs 3 value"),
+    (lambda s: jacobian(s, [0.5, 0.0], [M, K, C], r=[]), r"r needs 1 value\(s\) \(F\), got 0"),
+    (lambda s: jacobian(s, [0.5, 0.0], [M, K, C], r=[np.nan]), "r 'F' must be finite"),
+    (lambda s: jacobian(s, [0.5, 0.0], [M, K, C]), "is driven by F: pass r="),
+    (lambda s: jacobian(s, [[0.5, 0.0]], [M, K, C], r=[0.0]), "x must be a sequence of 2"),
+])
+def test_the_low_level_calls_check_x_p_and_r(oscillator, call, match):
+    with pytest.raises(ValueError, match=match):
+        call(oscillator)
+
+
+def test_the_low_level_calls_take_parameters_by_name(oscillator):
+    J = jacobian(oscillator, [0.5, 0.0], {"m": M, "k": K, "c": C}, r=[0.0])
+    np.testing.assert_allclose(J, [[0, 1], [-K / M, -C / M]], atol=1e-15)  # the oscillator by hand
 
 
 def test_c_and_d_of_the_measurements(cart_pole_example):

@@ -157,6 +157,27 @@ def parameter_vector(system: CompiledSystem, params: Mapping | None = None) -> n
     return p
 
 
+def kernel_vector(system: CompiledSystem, values, names, what: str) -> np.ndarray:
+    """``values``, one finite real per name, as the kernel's array (the low-level calls that take x,
+    p or r as the C function does); a wrong length, a non-number or NaN raises naming ``what``."""
+    if isinstance(values, (str, bytes, Mapping)) or not np.iterable(values) or np.ndim(values) != 1:
+        raise ValueError(f"{what} must be a sequence of {len(names)} number(s) ({', '.join(names)}), got {values!r}")
+    if len(values) != len(names):
+        raise ValueError(f"{what} needs {len(names)} value(s) ({', '.join(names)}), got {len(values)}")
+    array = np.array(real_values(list(values), names, what), dtype=real_dtype(system))
+    bad = [name for name, value in zip(names, array) if not np.isfinite(value)]
+    if bad:
+        raise ValueError(f"{what} is not finite in {', '.join(bad)}: {list(values)}")
+    return array
+
+
+def kernel_parameters(system: CompiledSystem, p) -> np.ndarray:
+    """``p`` as a mapping name -> value (`parameter_vector`) or one value per free parameter."""
+    if isinstance(p, Mapping):
+        return parameter_vector(system, p)
+    return kernel_vector(system, p, system.layout.parameters, "p")
+
+
 def initial_state(system: CompiledSystem, x0) -> np.ndarray:
     """x0 as a C-contiguous array of 2n values; accepts a sequence or a mapping name -> value
     (unnamed speeds default to 0, unnamed coordinates are an error)."""
@@ -450,10 +471,13 @@ def jacobian(system: CompiledSystem, x, p, t: float = 0.0, r=None, with_inputs: 
         raise ValueError(f"model {layout.model!r} was compiled without the 'jacobian' output")
     size = layout.n_state
     J = np.empty((size, size), dtype=real_dtype(system))
-    x, p = np.ascontiguousarray(x, dtype=real_dtype(system)), np.ascontiguousarray(p, dtype=real_dtype(system))
+    x = kernel_vector(system, x, layout.coordinates + layout.speeds, "x")
+    p = kernel_parameters(system, p)
     driven, Jr = (), None
     if layout.inputs:
-        r = np.ascontiguousarray(np.zeros(len(layout.inputs)) if r is None else r, dtype=real_dtype(system))
+        if r is None:
+            raise ValueError(f"model {layout.model!r} is driven by {', '.join(layout.inputs)}: pass r=")
+        r = kernel_vector(system, np.reshape(r, -1), layout.inputs, "r")
         Jr = np.empty((size, len(layout.inputs)), dtype=real_dtype(system))
         driven = (c_pointer(system, r),)
     arguments = (t, c_pointer(system, x), *driven, c_pointer(system, p), c_pointer(system, J))
@@ -671,7 +695,7 @@ def step_jacobians(system: CompiledSystem, x, p, h: float, method: str = "rk4", 
                          "outputs=(..., 'step_jacobian') and an explicit method")
     dtype, size, n_r = real_dtype(system), layout.n_state, len(layout.inputs)
     state = np.array(initial_state(system, x), dtype=dtype)
-    p = np.ascontiguousarray(p, dtype=dtype)
+    p = kernel_parameters(system, p)
     h = real_number(h, "h")
     Fx = np.empty((size, size), dtype=dtype)
     Fr = np.empty((size, n_r), dtype=dtype)
@@ -681,9 +705,7 @@ def step_jacobians(system: CompiledSystem, x, p, h: float, method: str = "rk4", 
     if n_r:
         if r is None:
             raise ValueError(f"model {layout.model!r} is driven by {', '.join(layout.inputs)}: pass r=")
-        r = np.ascontiguousarray(np.reshape(r, -1), dtype=dtype)
-        if r.size != n_r or not np.all(np.isfinite(r)):
-            raise ValueError(f"r must be {n_r} finite value(s) for {', '.join(layout.inputs)}, got {r}")
+        r = kernel_vector(system, np.reshape(r, -1), layout.inputs, "r")
         arguments.append(c_pointer(system, r))
     arguments += [c_pointer(system, p), h, c_pointer(system, Fx)]
     if n_r:
