@@ -163,3 +163,22 @@ def test_a_huge_parameter_does_not_crash_the_stability_check(pendulum):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         assert warn_if_unstable(pendulum, np.array(X0), p, 0.01, "rk4") is False
+
+
+def test_states_and_parameters_keyed_by_symbols_are_read_by_name(pendulum):
+    # found by review: x0 keyed by sympy Symbols passed the name check (str(key)) and was then read
+    # with x0.get(name), which found nothing: every value became 0 and the run said OK
+    import sympy as sp
+    import sympy.physics.mechanics as me
+
+    from lagcodegen.export.fmu import _state_start
+
+    q1, q2, q1_d = sp.symbols("q1 q2 q1_d")
+    by_string = run(pendulum, x0={"q1": 1.0, "q2": 0.5, "q1_d": 0.3}, params={"m2": 2.0})
+    for x0, params in [({q1: 1.0, q2: 0.5, q1_d: 0.3}, {sp.Symbol("m2"): 2.0}),
+                       ({me.dynamicsymbols("q1"): 1.0, me.dynamicsymbols("q2"): 0.5, "q1_d": 0.3}, {"m2": 2.0})]:
+        np.testing.assert_array_equal(run(pendulum, x0=x0, params=params).x, by_string.x)
+    assert by_string.x[0].tolist() == [1.0, 0.5, 0.3, 0.0]
+    assert _state_start(pendulum.layout, {q1: 1.0, q2: 0.5}) == [1.0, 0.5, 0.0, 0.0]
+    with pytest.raises(ValueError, match="x0 names 'q1' twice"):
+        run(pendulum, x0={q1: 1.0, "q1": 2.0, "q2": 0.0})

@@ -32,6 +32,7 @@ from ..codegen.render import CSources, render_sources, template_environment
 from ..integrators.schemes import get_scheme, required_outputs
 from ..model import Model
 from ..native.build import DEFAULT_FLAGS, BuildError, CompiledSystem, _compiler_command
+from ..run.arguments import keyed_by_name
 from ..status import STATUS_TABLE
 from ..symbolic.derive import EquationsOfMotion, derive_equations
 from .description import build_description, model_description, model_description_fmi3
@@ -180,7 +181,7 @@ def _kernel_sources(model, method: str, fixed) -> CSources:
         raise FmuError(f"export_fmu needs a Model, EquationsOfMotion or CompiledSystem, got {type(model).__name__}")
     outputs = applicable_outputs(model, FMU_OUTPUTS)
     outputs += [o for o in required_outputs((method,)) if o not in outputs]
-    fixed_values = {(k.name if hasattr(k, "name") else str(k)): v for k, v in (fixed or {}).items()}
+    fixed_values = keyed_by_name(fixed or {}, "fixed")
     return render_sources(reduce_expressions(model, outputs, fixed_values), "double", methods=(method,))
 
 
@@ -189,7 +190,8 @@ def _state_start(layout, x0) -> list:
     if x0 is None:
         return [0.0] * len(names)
     if isinstance(x0, Mapping):
-        unknown = [str(k) for k in x0 if str(k) not in names]
+        x0 = keyed_by_name(x0, "x0")
+        unknown = [k for k in x0 if k not in names]
         if unknown:
             raise FmuError(f"x0: {unknown[0]!r} is not a state of {layout.model!r}; states: {', '.join(names)}")
         values = [x0.get(name, 0.0) for name in names]
@@ -201,7 +203,7 @@ def _state_start(layout, x0) -> list:
 
 
 def _parameter_start(layout, params) -> list:
-    given = {(k.name if hasattr(k, "name") else str(k)): v for k, v in (params or {}).items()}
+    given = keyed_by_name(params or {}, "params")
     fixed = dict(layout.fixed)
     for name in given:
         if name in fixed:

@@ -26,6 +26,18 @@ OUTPUT_MEMORY_FRACTION = 0.5
 _FALLBACK_LIMIT = 16 * 2 ** 30
 
 
+def keyed_by_name(mapping, what: str) -> dict:
+    """``mapping`` with its keys as names: a str as it is, a sympy Symbol or dynamicsymbol by its
+    ``name`` (so ``{q1: 1.0}`` and ``{"q1": 1.0}`` mean the same); two keys of one name raise."""
+    named: dict = {}
+    for key, value in mapping.items():
+        name = key if isinstance(key, str) else str(getattr(key, "name", key))
+        if name in named:
+            raise ValueError(f"{what} names {name!r} twice")
+        named[name] = value
+    return named
+
+
 def real_number(value, what: str) -> float:
     """``value`` as a finite float; TypeError for non-numbers (str, None, bool, complex),
     ValueError for NaN, infinities and ints too large for a double, each naming ``what``."""

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..status import Status
+from .arguments import keyed_by_name
 
 HOLDS = {"zoh": 0, "foh": 1}
 #: a table must reach the run's end to within this fraction of a step (the last time is t0 + n h)
@@ -195,7 +196,7 @@ def _table_by_name(layout, inputs: Mapping, t0: float, t_end: float) -> InputTab
     """{name: constant or (times, values)}: every input named once; tables merged on the union of
     their knots (linear interpolation on a finer grid reproduces each piecewise-linear signal)."""
     names = layout.inputs
-    given = {(k.name if hasattr(k, "name") else str(k)): v for k, v in inputs.items()}
+    given = keyed_by_name(inputs, "inputs")
     unknown = [k for k in given if k not in names]
     if unknown:
         raise InputError(f"unknown input(s) {', '.join(unknown)}; inputs of {layout.model!r}: {', '.join(names)}")

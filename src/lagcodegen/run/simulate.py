@@ -19,6 +19,7 @@ from ..status import Status
 from .arguments import (  # noqa: F401
     check_output_size,
     flag,
+    keyed_by_name,
     method_name,
     missing_constraints,
     output_bytes,
@@ -137,7 +138,7 @@ def parameter_vector(system: CompiledSystem, params: Mapping | None = None) -> n
     layout = system.layout
     if params is not None and not isinstance(params, Mapping):
         raise TypeError(f"params must be a mapping name -> value, got {type(params).__name__}")
-    given = {(k.name if hasattr(k, "name") else str(k)): v for k, v in (params or {}).items()}
+    given = keyed_by_name(params or {}, "params")
     fixed = {name for name, _ in layout.fixed}
     for name in given:
         if name in fixed:
@@ -184,14 +185,15 @@ def initial_state(system: CompiledSystem, x0) -> np.ndarray:
     layout = system.layout
     names = layout.coordinates + layout.speeds
     if isinstance(x0, Mapping):
-        unknown = [k for k in x0 if str(k) not in names]
-        dependent = [str(k) for k in unknown if str(k) in layout.dependent_speeds]
+        x0 = keyed_by_name(x0, "x0")
+        unknown = [k for k in x0 if k not in names]
+        dependent = [k for k in unknown if k in layout.dependent_speeds]
         if dependent:
             raise ValueError(f"{', '.join(dependent)}: dependent speed(s), computed from the velocity constraints "
                              f"at every evaluation, not in the state; state: {', '.join(names)}")
         if unknown:
             raise ValueError(f"unknown state variable(s) {unknown}; state: {', '.join(names)}")
-        missing = [c for c in layout.coordinates if c not in {str(k) for k in x0}]
+        missing = [c for c in layout.coordinates if c not in x0]
         if missing:
             raise ValueError(f"initial state lacks coordinate(s) {', '.join(missing)}")
         x0 = [x0.get(name, 0.0) for name in names]
