@@ -45,6 +45,9 @@ __all__ = ["BuildError", "CompiledSystem", "build_module", "compiler_available",
 # -O3 unrolls the stage loops; -fno-math-errno lets gcc fuse sin and cos of one angle into sincos
 # (the kernels never read errno, and IEEE results are unchanged)
 DEFAULT_FLAGS = ("-O3", "-std=c99", "-fno-math-errno", "-Werror=implicit-function-declaration")
+#: after the caller's flags: the statuses rest on isfinite() and x != x, which -ffinite-math-only
+#: (part of -ffast-math) compiles away, and a NaN state would then end a run with status OK
+IEEE_FLAGS = ("-fno-finite-math-only",)
 _INSTALL_HINT = ("install gcc, e.g. apt-get install gcc / build-essential, "
                  "or set CC to a working C compiler")
 _EXT_SUFFIX = sysconfig.get_config_var("EXT_SUFFIX") or ".so"
@@ -226,7 +229,8 @@ def build_module(sources: CSources, *, cache_dir=None, extra_compile_args=(), co
     cache_dir : path, optional
         Overrides ``$LAGCODEGEN_CACHE_DIR`` and the user cache dir.
     extra_compile_args : sequence of str
-        Appended to :data:`DEFAULT_FLAGS`; part of the key.
+        Appended to :data:`DEFAULT_FLAGS`, then :data:`IEEE_FLAGS` (so -ffast-math keeps the
+        non-finite checks); part of the key.
     compiler : str, optional
         Compiler command (default ``$CC``, else Python's configured compiler); part of the key.
     cost : BuildCost, optional
@@ -242,7 +246,7 @@ def build_module(sources: CSources, *, cache_dir=None, extra_compile_args=(), co
         ``cache_dir`` was given and cannot be used. Without it, an unusable cache dir gives way
         to a temporary one, with a ``cache.CacheDirWarning``.
     """
-    flags = (*DEFAULT_FLAGS, *extra_compile_args)
+    flags = (*DEFAULT_FLAGS, *extra_compile_args, *IEEE_FLAGS)
     command = tuple(_compiler_command(compiler))
     key = _key(sources, list(flags), _compiler_identity(command))
     # bounded: the module name is also a file name and a C identifier (PyInit_<name>)
