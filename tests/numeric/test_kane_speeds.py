@@ -399,3 +399,14 @@ def test_a_start_off_the_configuration_constraints_is_named_with_the_value_that_
     with pytest.raises(ValueError, match=r"q0 = 0\.9 \(fits: 0\.8"):
         simulate(system, [0.6, 0.0, 0.0, 0.9, 0.1, 0.2, 0.3], 1.0, 0.01, params=INERTIA)
     assert simulate(system, [0.6, 0.0, 0.0, 0.8, 0.1, 0.2, 0.3], 1.0, 0.01, params=INERTIA).ok
+
+
+def test_a_sweep_checks_every_member_on_the_configuration_constraints():
+    # found by review: sweep ran members off |q| = 1 with status OK where simulate refuses the start
+    kane, N, (I1, I2, I3), _ = _quaternion_body(q0_dependent=True)
+    system = compile_model(Model("quaternion_off", parameters=[I1, I2, I3], sympy_model=kane, frame=N),
+                           methods=["rk4"])
+    x0 = [0.6, 0.0, 0.0, 0.8, 0.1, 0.2, 0.3]  # q0 = 0.8 fits q1 = 0.6 (by hand), not q1 = 0
+    with pytest.raises(ValueError, match=r"member 1 \(q1 = 0\): x0 violates.*q0 = 0\.8 \(fits: 1"):
+        sweep(system, {"q1": [0.6, 0.0]}, x0=x0, t_end=0.1, h=0.01, params=INERTIA)
+    assert sweep(system, {"I1": [1.0, 2.0]}, x0=x0, t_end=0.1, h=0.01, params=INERTIA).status.tolist() == [0, 0]

@@ -294,6 +294,29 @@ def test_fixed_parameter_cannot_be_swept(compiled_example):
     assert sweep(fixed_g, {"m2": M2}, **COMMON).completed
 
 
+def test_a_member_starting_off_its_constraints_is_named(compiled_example):
+    # found by review: simulate warns of a start off x^2 + y^2 = l^2, sweep said nothing. (0, -1) is
+    # on the constraint for l = 1 and off it by |1 - 4| = 3 for l = 2 (by hand).
+    from lagcodegen.run.drift import ConstraintDriftWarning
+
+    system = compiled_example("cartesian_pendulum", outputs=("rhs", "constraints"), methods=("rk4",))
+    with pytest.warns(ConstraintDriftWarning, match=r"1 member\(s\) start off.*member 1 \(l = 2\) with \|phi\| = 3"):
+        result = sweep(system, {"l": [1.0, 2.0]}, x0={"x": 0.0, "y": -1.0}, t_end=0.01, h=1e-3)
+    assert result.completed
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ConstraintDriftWarning)
+        sweep(system, members={"l": [1.0, 2.0], "y": [-1.0, -2.0]}, x0={"x": 0.0}, t_end=0.01, h=1e-3)
+
+
+def test_a_swept_value_beyond_the_float_range_is_named(compiled_example):
+    # found by review: 1e39 became inf in the float kernel and the member failed as a singular mass matrix
+    system = compiled_example("double_pendulum", precision="float", outputs=("rhs",), methods=("rk4",))
+    with pytest.raises(ValueError, match=r"swept 'm2' = 1e\+39 \(member 1\) is beyond the range of the float kernel"):
+        sweep(system, {"m2": [1.0, 1e39]}, **COMMON)
+    with pytest.raises(ValueError, match=r"swept 'q1_d' = -1e\+39 \(member 0\)"):
+        sweep(system, members={"q1_d": [-1e39]}, **COMMON)
+
+
 # --- Ctrl-C ------------------------------------------------------------------------------------
 
 N_CHUNK, CHUNK = 6, 2  # 12 members in 6 chunks on 1 thread (FIFO: chunk j is the (j+1)-th call)

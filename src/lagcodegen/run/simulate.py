@@ -173,8 +173,9 @@ def kernel_vector(system: CompiledSystem, values, names, what: str) -> np.ndarra
 
 
 def kernel_parameters(system: CompiledSystem, p) -> np.ndarray:
-    """``p`` as a mapping name -> value (`parameter_vector`) or one value per free parameter."""
-    if isinstance(p, Mapping):
+    """``p`` as a mapping name -> value (`parameter_vector`; None: the defaults) or one value per
+    free parameter."""
+    if p is None or isinstance(p, Mapping):
         return parameter_vector(system, p)
     return kernel_vector(system, p, system.layout.parameters, "p")
 
@@ -310,9 +311,7 @@ def simulate(system: CompiledSystem, x0, t_end: float, h: float, method: str = "
     stride = stride_within(stride, n_steps)
     x = initial_state(system, x0)
     p = parameter_vector(system, params)
-    if system.layout.dependent_speeds:  # a singular constraint Jacobian at the start is bad input
-        dependent_speeds(system, x, params, t0)
-    _check_configuration(system, x, p, t0)
+    check_start(system, x, p, t0)
     ramp = hold_code(hold)
     signal = resolve_inputs(system.layout, inputs, t0, h, n_steps, stride, hold)
     if ramp and callable(signal):
@@ -334,6 +333,28 @@ def simulate(system: CompiledSystem, x0, t_end: float, h: float, method: str = "
     if not outputs["residuals"] and trajectory.residuals is not None:  # kept for the drift check only
         trajectory = replace(trajectory, residuals=None)
     return trajectory
+
+
+def check_start(system: CompiledSystem, x: np.ndarray, p: np.ndarray, t0: float) -> None:
+    """A ValueError naming the culprit when x at t0 cannot start a run: the eliminated dependent
+    speeds not solvable (a singular constraint Jacobian in them), or x off Kane's configuration
+    constraints."""
+    if system.layout.dependent_speeds:
+        _per_state(system, "dependent_speeds", system.layout.dependent_speeds, x, p, t0, None)
+    _check_configuration(system, x, p, t0)
+
+
+def start_offsets(system: CompiledSystem, x: np.ndarray, p: np.ndarray, t0: float) -> float | None:
+    """max |phi| of the constraints with multipliers at x (None without them)."""
+    layout = system.layout
+    m = layout.n_constraints
+    if not m or f"{layout.prefix}_residuals" not in layout.functions:
+        return None
+    out = np.empty(2 * m, dtype=real_dtype(system))
+    residuals = getattr(system.lib, f"{layout.prefix}_residuals")
+    residuals(t0, c_pointer(system, np.ascontiguousarray(x)), c_pointer(system, np.ascontiguousarray(p)),
+              c_pointer(system, out))
+    return float(np.max(np.abs(out[:m])))
 
 
 def _check_configuration(system: CompiledSystem, x: np.ndarray, p: np.ndarray, t0: float) -> None:
@@ -662,7 +683,7 @@ def _per_state(system: CompiledSystem, function: str, names: tuple, x, params, t
         raise ValueError(f"x must hold {layout.n_state} values per state "
                          f"({', '.join(layout.coordinates + layout.speeds)}), got shape {np.shape(x)}")
     times = np.broadcast_to(np.asarray(t, dtype=float), (len(states),))
-    p = parameter_vector(system, params)
+    p = kernel_parameters(system, params)
     call = getattr(system.lib, f"{layout.prefix}_{function}")
     driven = function == "reactions" and layout.inputs
     if driven:

@@ -44,6 +44,7 @@ from .simulate import c_pointer, compiled_method, real_dtype, work_size
 from .sweep_members import (  # noqa: F401
     cartesian_members,
     cartesian_product,
+    check_member_starts,
     column_values,
     grid_axes,
     member_arrays,
@@ -226,6 +227,7 @@ def sweep(system: CompiledSystem, grid: Mapping | None = None, *, members: Mappi
         (columns, values), axes = table_members(members), None
         _check_sweep_size(layout, len(values), len(columns), n_steps, stride, trajectories, max_output_bytes)
     xs, ps = member_arrays(system, columns, values, x0, params)
+    check_member_starts(system, xs, ps, t0, columns, values)
     ramp = hold_code(hold)
     tables = member_input_tables(system, columns, values, inputs, member_inputs, t0, h, n_steps, stride, hold)
     held = tables is not None and tables[0].shape[1] == 1  # every member's inputs constant in time

@@ -110,7 +110,47 @@ def member_arrays(system: CompiledSystem, columns, values, x0, params):
             ps[:, layout.parameters.index(name)] = values[:, j]
         elif name in state_names:
             xs[:, state_names.index(name)] = values[:, j]
+    for j, name in enumerate(columns):
+        if name in layout.parameters or name in state_names:
+            beyond = np.nonzero(~np.isfinite(values[:, j].astype(dtype)))[0]
+            if beyond.size:  # finite doubles beyond the float range
+                raise ValueError(f"swept {name!r} = {float(values[beyond[0], j])!r} (member {beyond[0]}) is beyond the "
+                                 f"range of the {layout.precision} kernel")
     return np.ascontiguousarray(xs, dtype=dtype), np.ascontiguousarray(ps, dtype=dtype)
+
+
+def check_member_starts(system: CompiledSystem, xs, ps, t0: float, columns, values) -> None:
+    """Every member's initial state as `simulate` checks it (`simulate.check_start`): a ValueError
+    naming the first member that cannot start; and a `ConstraintDriftWarning` naming the members
+    that start off constraints with multipliers by more than the drift tolerance (simulate warns of
+    the same through its residuals)."""
+    import warnings
+
+    from .drift import DRIFT_TOLERANCE, ConstraintDriftWarning
+    from .simulate import check_start, start_offsets
+
+    layout = system.layout
+    n_p = len(layout.parameters)
+    tolerance = DRIFT_TOLERANCE[layout.precision]
+    off = []
+    for i, (x, p) in enumerate(zip(xs, ps)):
+        try:
+            check_start(system, x, p[:n_p], t0)
+        except ValueError as error:
+            raise ValueError(f"member {i} ({_member_text(columns, values[i])}): {error}") from None
+        offset = start_offsets(system, x, p[:n_p], t0)
+        if offset is not None and not offset <= tolerance:
+            off.append((i, offset))
+    if off:
+        worst = max(off, key=lambda item: item[1] if item[1] == item[1] else np.inf)
+        warnings.warn(f"{len(off)} member(s) start off the constraints of model {layout.model!r} (max |phi| > "
+                      f"{tolerance:g}), e.g. member {worst[0]} ({_member_text(columns, values[worst[0]])}) with "
+                      f"|phi| = {worst[1]:.3g}: start each member on its constraints", ConstraintDriftWarning,
+                      stacklevel=3)
+
+
+def _member_text(columns, row) -> str:
+    return ", ".join(f"{name} = {float(value):g}" for name, value in zip(columns, row))
 
 
 def member_input_tables(system: CompiledSystem, columns, values, inputs, member_inputs, t0: float, h: float,
