@@ -820,7 +820,7 @@ void lcg_centrifugal_governor_sweep(int method, long n_members, const double *x0
             }
             if (track_energy) {
                 const double error = fabs(lcg_centrifugal_governor_energy(t0 + (double)k * h, x, p) - energy0);
-                if (error > drift) drift = error;
+                if (error > drift || error != error) drift = error;  /* NaN sticks */
             }
             if (--until_sample == 0) {
                 until_sample = stride;

@@ -796,7 +796,7 @@ void lcg_disk_spring_rod_sweep(int method, long n_members, const double *x0s, co
             }
             if (track_energy) {
                 const double error = fabs(lcg_disk_spring_rod_energy(t0 + (double)k * h, x, p) - energy0);
-                if (error > drift) drift = error;
+                if (error > drift || error != error) drift = error;  /* NaN sticks */
             }
             if (--until_sample == 0) {
                 until_sample = stride;

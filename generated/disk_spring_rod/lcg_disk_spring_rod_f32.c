@@ -796,7 +796,7 @@ void lcg_disk_spring_rod_f32_sweep(int method, long n_members, const float *x0s,
             }
             if (track_energy) {
                 const float error = fabsf(lcg_disk_spring_rod_f32_energy(t0 + (float)k * h, x, p) - energy0);
-                if (error > drift) drift = error;
+                if (error > drift || error != error) drift = error;  /* NaN sticks */
             }
             if (--until_sample == 0) {
                 until_sample = stride;

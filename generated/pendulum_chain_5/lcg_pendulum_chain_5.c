@@ -1491,7 +1491,7 @@ void lcg_pendulum_chain_5_sweep(int method, long n_members, const double *x0s, c
             }
             if (track_energy) {
                 const double error = fabs(lcg_pendulum_chain_5_energy(t0 + (double)k * h, x, p) - energy0);
-                if (error > drift) drift = error;
+                if (error > drift || error != error) drift = error;  /* NaN sticks */
             }
             if (--until_sample == 0) {
                 until_sample = stride;

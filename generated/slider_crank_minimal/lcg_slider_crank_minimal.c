@@ -917,7 +917,7 @@ void lcg_slider_crank_minimal_sweep(int method, long n_members, const double *x0
             }
             if (track_energy) {
                 const double error = fabs(lcg_slider_crank_minimal_energy(t0 + (double)k * h, x, p) - energy0);
-                if (error > drift) drift = error;
+                if (error > drift || error != error) drift = error;  /* NaN sticks */
             }
             if (--until_sample == 0) {
                 until_sample = stride;

@@ -363,6 +363,23 @@ def test_a_sweep_over_input_amplitude_scales_the_base_signal(measured):
     np.testing.assert_allclose(constant.x_final[:, 0], step_response(3.0, np.array([1.0, 2.0])), atol=1e-10)
 
 
+def test_a_nan_sample_makes_the_sweep_summary_nan(tmp_path, driven_oscillator):
+    # found by review: "if (y < low)" skipped NaN samples once a run was under way (finite y_min although
+    # most samples were NaN) and kept a NaN from t0 (NaN although most were finite); an energy inf from
+    # the start gave energy_error 0. Undamped from x = +-1 with F = 0, x = +-cos 2t (by hand) changes
+    # sign, so sqrt(x) is NaN at some steps either way; at x = 1e160, x^2 overflows the energy.
+    model = driven_oscillator("driven_root", measurements={"root": lambda x, F, m, k, c: sp.sqrt(x)})
+    system = compile_model(model, methods=("rk4",), cache_dir=tmp_path)
+    for start in (1.0, -1.0):
+        run = simulate(system, {"x": start}, t_end=2.0, h=1e-3, inputs=0.0, params={"c": 0.0})
+        assert np.isnan(run["root"]).any() and np.isfinite(run["root"]).any()
+        result = sweep(system, {"k": [K]}, x0={"x": start}, t_end=2.0, h=1e-3, inputs=0.0, params={"c": 0.0})
+        assert result.status[0] == Status.OK
+        assert np.isnan(result.y_min[0, 0]) and np.isnan(result.y_max[0, 0])
+    result = sweep(system, {"k": [K]}, x0={"x": 1e160}, t_end=0.01, h=1e-3, inputs=0.0)
+    assert np.isnan(result.energy_error[0])
+
+
 def test_member_inputs_give_each_member_its_own_signal(measured):
     specs = [1.0, ([0.0, 1.0, 2.0], [0.0, 1.0, 1.0])]
     result = sweep(measured, members={"k": [1.0, 4.0]}, x0={"x": 0.0}, t_end=2.0, h=1e-3, member_inputs=specs)

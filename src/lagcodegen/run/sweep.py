@@ -83,7 +83,8 @@ class SweepResult:
     q_max : ndarray (n_members, n)
         max |q_i| over every step.
     energy_error : ndarray (n_members,) or None
-        max |E - E0| over every step, when the kernel has the energy output.
+        max |E - E0| over every step, when the kernel has the energy output; NaN when an energy
+        was not finite (E - E0 NaN).
     status : ndarray (n_members,) of int
         `Status` codes; NOT_RUN (-1) for members an interruption skipped, CHUNK_FAILED (-2) for
         members of a chunk that raised (listed in ``errors``).
@@ -101,7 +102,8 @@ class SweepResult:
         The chunks that raised, with the exception (also emitted as a `SweepWarning`).
     y_final, y_min, y_max : ndarray (n_members, n_y) or None
         The model's measurements at the end, and their least and greatest value over every step,
-        columns named by ``measurement_names``.
+        columns named by ``measurement_names``; NaN where any step's value was NaN (as
+        ``energy_error`` where an energy was).
     """
 
     columns: tuple
