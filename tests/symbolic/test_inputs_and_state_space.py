@@ -261,3 +261,20 @@ def test_governor_relative_equilibrium_in_the_first_order_form(route):
     np.testing.assert_allclose(np.sort(linear.eigenvalues().imag), [-w, w], rtol=1e-10)
     np.testing.assert_allclose(linear.eigenvalues().real, 0.0, atol=1e-10)
     np.testing.assert_allclose(linear.damping_ratios(), 0.0, atol=1e-10)
+
+
+def test_a_constrained_model_with_atan2_linearizes():
+    # found by review: numpy's arctan2 takes no complex step (a bare TypeError). A Cartesian pendulum
+    # with a torsion spring k theta^2 / 2 on theta = atan2(x, -y): m l^2 theta'' = -m g l theta - k theta
+    # about hanging, so the eigenvalues are +-i sqrt(g / l + k / (m l^2)) (by hand).
+    m, l, g, k = sp.symbols("m l g k", positive=True)
+    x, y = me.dynamicsymbols("x y")
+    N, O = me.ReferenceFrame("N"), me.Point("O")
+    bob = O.locatenew("bob", x * N.x + y * N.y)
+    model = Model("cartesian_torsion", [x, y], (m, l, g, k), bodies=[me.Particle("bob", bob, m)],
+                  gravity=-g * N.y, frame=N, origin=O, potential_energy=k * sp.atan2(x, -y) ** 2 / 2,
+                  constraints=[x ** 2 + y ** 2 - l ** 2], parameter_values={m: 2.0, l: 1.5, g: 9.81, k: 3.0})
+    eigenvalues = linearize_state(derive_equations(model), [0.0, -1.5, 0.0, 0.0], values={}).eigenvalues()
+    expected = np.sqrt(9.81 / 1.5 + 3.0 / (2.0 * 1.5 ** 2))
+    np.testing.assert_allclose(np.sort(eigenvalues.imag), [-expected, expected], rtol=1e-12)
+    np.testing.assert_allclose(eigenvalues.real, 0.0, atol=1e-12)

@@ -224,8 +224,11 @@ def _constrained(eom, states, point, held, at, vals, number, parts, t0) -> State
                     + [complex(vals[p]) for p in parameters])
     for k, v in enumerate(variables):  # K holds no speeds or inputs: most of its derivatives are zero
         if stepped is not None:
-            dK, drhs = _complex_step(stepped, base, k)
-        else:
+            try:
+                dK, drhs = _complex_step(stepped, base, k)
+            except TypeError:  # a numpy function that takes no complex arguments (arctan2): symbolic ones
+                stepped = None
+        if stepped is None:
             dK = partial(K, v, f"d[[M, A^T], [A, 0]]/d{v}") if v in in_K else np.zeros(K.shape)
             drhs = partial(rhs, v, f"d(F, gamma)/d{v}") if v in in_rhs else np.zeros((n + m, 1))
         columns.append(np.linalg.solve(K_here, drhs.ravel() - dK @ z)[:n])
