@@ -342,3 +342,20 @@ def test_non_finite_or_non_numeric_q0_is_refused(double, q0, error, culprit):
 def test_non_finite_parameter_values_are_refused(double, value):
     with pytest.raises(ValueError, match=r"parameter m2 needs a finite number"):
         linearize(double, [0.0, 0.0], values={"m2": value})
+
+
+def test_linearize_refuses_a_point_that_is_no_equilibrium():
+    # found by review: linearize took q0 = 1.2 of the pendulum and reported it stable with omega = 1.885.
+    # At rest there the generalized force is -m g l sin(1.2) = -9.1433 (by hand), not 0.
+    theta, tau = me.dynamicsymbols("theta tau")
+    m, g, l = sp.symbols("m g l", positive=True)
+    pendulum = Model("pendulum_off", [theta], [m, g, l], kinetic_energy=m * l ** 2 * theta.diff() ** 2 / 2,
+                     potential_energy=-m * g * l * sp.cos(theta), generalized_forces={theta: tau}, inputs=[tau],
+                     parameter_values={"m": 1.0, "g": 9.81, "l": 1.0})
+    eom = derive_equations(pendulum)
+    for values in (None, {}):
+        with pytest.raises(ValueError, match=r"q0 = \[1\.2\] is no equilibrium.*force on theta at rest is -9\.1433"):
+            linearize(eom, [1.2], values, inputs=[0.0])
+    # held at the torque that balances gravity there, it is one: K0 = m g l cos(1.2) (by hand)
+    held = linearize(eom, [1.2], {}, inputs=[9.81 * math.sin(1.2)])
+    assert held.K0[0, 0] == pytest.approx(9.81 * math.cos(1.2), rel=1e-12)

@@ -465,6 +465,7 @@ def linearize(eom: EquationsOfMotion, q0: Any, values: Mapping | None = None, in
     C = _smooth(eom, -eom.forcing.jacobian(eom.u), eom.u).xreplace(rest)
     K = _smooth(eom, -eom.forcing.xreplace(rest).jacobian(eom.q), eom.q)  # d/dq commutes with u = 0
     mats = [sp.ImmutableMatrix(A.xreplace(at)) for A in (eom.mass_matrix, C, K)]
+    _check_at_rest(eom, at, rest, mats[2], values)
     if list(eom.kinematics) != list(eom.u):
         mats = _in_coordinate_rates(eom, mats, rest, at)
     if values is None:
@@ -474,6 +475,27 @@ def linearize(eom: EquationsOfMotion, q0: Any, values: Mapping | None = None, in
               for A, name in zip(mats, ("M0", "C0", "K0"))]
     numbers = {p: sp.Float(v) for p, v in vals.items()}
     return LinearModel(tuple(eom.q), tuple(float(sp.sympify(v).xreplace(numbers)) for v in point), *arrays)
+
+
+def _check_at_rest(eom: EquationsOfMotion, at: dict, rest: dict, K: sp.Matrix, values) -> None:
+    """A ValueError naming the first coordinate whose generalized force at rest does not vanish at q0
+    (q0 is then no equilibrium, and the linear model about it means nothing). Checked in numbers
+    (``values`` over the model's defaults) where every parameter has one."""
+    if eom.m or eom.n_dependent:  # the constraint forces balance F at a constrained equilibrium
+        return
+    vals = dict(eom.parameter_values) if values is None else resolve_values(eom, values)
+    numbers = {p: sp.Float(v) for p, v in vals.items()}
+    force = sp.Matrix(eom.forcing).xreplace(rest).xreplace(at).xreplace(numbers)
+    stiffness = sp.Matrix(K).xreplace(numbers)
+    if force.free_symbols or stiffness.free_symbols:
+        return
+    force, stiffness = (np.array(A.evalf(), dtype=float) for A in (force, stiffness))
+    for i, (residual, row) in enumerate(zip(force.ravel(), stiffness)):
+        if not abs(residual) <= 1e-8 * (1.0 + np.abs(row).max(initial=0.0)):
+            raise ValueError(f"q0 = {[float(sp.sympify(v).xreplace(numbers)) for v in (at[c] for c in eom.q)]} "
+                             f"is no equilibrium of model {eom.name!r}: the generalized force on {eom.q[i]} at rest "
+                             f"is {residual:.6g}, not 0; find one with find_equilibria, or linearize about any state "
+                             "with statics.state_space.linearize_state")
 
 
 def _in_coordinate_rates(eom: EquationsOfMotion, mats: list, rest: dict, at: dict) -> list:
