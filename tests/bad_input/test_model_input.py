@@ -210,6 +210,17 @@ def test_bad_measurements_are_named(measurements, match):
               measurements={name: table[key] for name, key in measurements.items()})
 
 
+def test_a_measurement_named_like_a_speed_is_refused():
+    # found by review: traj["x_d"] then returned the speed, not the measurement
+    from lagcodegen import derive_equations
+
+    x = me.dynamicsymbols("x")
+    m = sp.symbols("m")
+    model = Model("sensed_speed", [x], [m], kinetic_energy=m * x.diff() ** 2 / 2, measurements={"x_d": 2 * x})
+    with pytest.raises(ModelError, match="measurement 'x_d' has the name of a speed of model 'sensed_speed'"):
+        derive_equations(model)
+
+
 def test_a_joints_method_with_a_loose_joint_is_named():
     # sympy's own error ("Velocity of point c_masscenter has not been defined") names no joint
     import warnings

@@ -299,6 +299,9 @@ def test_an_undriven_model_refuses_inputs(tmp_path):
     (lambda t, x: [np.nan] if t > 0.5 else [0.0], Status.NONFINITE_INPUT, "input 'F' = nan"),
     (lambda t, x: "a" if t > 0.5 else [0.0], Status.INPUT_FAILED, "returned"),
     (lambda t, x: None if t > 0.5 else [0.0], Status.INPUT_FAILED, "returned 'NoneType'"),
+    # found by review: a string parsed as a number, a complex lost its imaginary part (or was named a shape)
+    (lambda t, x: "1.0" if t > 0.5 else [0.0], Status.INPUT_FAILED, "returned str.*expected 1 real number"),
+    (lambda t, x: [1.0 + 0.5j] if t > 0.5 else [0.0], Status.INPUT_FAILED, "returned complex128 values"),
 ])
 def test_a_failing_callable_stops_with_a_status_and_keeps_the_run(oscillator, callable_, status, detail):
     with warnings.catch_warnings(record=True) as caught:

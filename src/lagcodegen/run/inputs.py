@@ -261,6 +261,15 @@ class CallableInputs:
             return self._fail(Status.INPUT_FAILED, f"the input callable raised {type(error).__name__}: {error} "
                                                    f"at t = {float(t):g}")
         try:
+            kind = np.asarray(result).dtype.kind
+        except (TypeError, ValueError):  # ragged: refused below
+            kind = "O"
+        if kind in "USc":  # a string would parse as a number, a complex would lose its imaginary part
+            what = type(result).__name__ if np.ndim(result) == 0 else f"{np.asarray(result).dtype} values"
+            return self._fail(Status.INPUT_FAILED, f"the input callable returned {what} at t = {float(t):g}; "
+                                                   f"expected {len(self.names)} real number(s) for "
+                                                   f"{', '.join(self.names)}")
+        try:
             values = None if result is None else \
                 np.asarray(result, dtype=float).reshape(-1) if np.ndim(result) <= 1 else None
         except (TypeError, ValueError):

@@ -58,4 +58,9 @@ def derive_equations(model: Model) -> EquationsOfMotion:
     except KeyError:
         raise ModelError(f"model {model.name!r} has the route {model.route!r}, which no derivation "
                          f"serves (routes: {', '.join(ROUTES)})") from None
-    return route(model)
+    eom = route(model)
+    speeds = {s.name for s in eom.u}
+    for name, _ in eom.measurements:  # a trajectory's columns are looked up by name
+        if name in speeds:
+            raise ModelError(f"measurement {name!r} has the name of a speed of model {model.name!r}; rename it")
+    return eom
