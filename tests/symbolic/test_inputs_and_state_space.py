@@ -278,3 +278,29 @@ def test_a_constrained_model_with_atan2_linearizes():
     expected = np.sqrt(9.81 / 1.5 + 3.0 / (2.0 * 1.5 ** 2))
     np.testing.assert_allclose(np.sort(eigenvalues.imag), [-expected, expected], rtol=1e-12)
     np.testing.assert_allclose(eigenvalues.real, 0.0, atol=1e-12)
+
+
+def test_steady_eigenvalues_check_the_cyclic_coordinates_and_the_motion():
+    # found by review: a non-cyclic coordinate named cyclic, or a state that is not steady, gave
+    # eigenvalues without a word; the symbolic linearization at a singular M raised sympy's bare error
+    from lagcodegen.statics.steady import SteadyMotion, steady_eigenvalues, steady_motion
+
+    theta, phi = me.dynamicsymbols("theta phi")
+    m, g, l = sp.symbols("m g l", positive=True)
+    eom = derive_equations(Model("steady_pendulum", [theta], [m, g, l], kinetic_energy=m * l ** 2 * theta.diff() ** 2 / 2,
+                                 potential_energy=-m * g * l * sp.cos(theta),
+                                 parameter_values={"m": 1.0, "g": 9.81, "l": 1.0}))
+    hanging = steady_motion(eom, {"theta": 0.1}, ["theta"], ["theta_d"])
+    np.testing.assert_allclose(np.sort(steady_eigenvalues(eom, hanging, [], ["theta_d"]).imag),
+                               [-np.sqrt(9.81), np.sqrt(9.81)], rtol=1e-10)  # +-i sqrt(g / l), by hand
+    with pytest.raises(ValueError, match="theta is not cyclic in model 'steady_pendulum'"):
+        steady_eigenvalues(eom, hanging, ["theta"], ["theta_d"])
+    tilted = SteadyMotion(hanging.names, np.array([1.2, 0.0]), 0.0, np.zeros(1))
+    with pytest.raises(ValueError, match=r"no steady motion.*d/dt theta_d = -9\.1433"):  # -g/l sin 1.2
+        steady_eigenvalues(eom, tilted, [], ["theta_d"])
+    spherical = derive_equations(Model("spherical", [theta, phi], [m, g, l],
+                                       kinetic_energy=m * l ** 2 * (theta.diff() ** 2
+                                                                    + sp.sin(theta) ** 2 * phi.diff() ** 2) / 2,
+                                       potential_energy=-m * g * l * sp.cos(theta)))
+    with pytest.raises(ValueError, match="mass matrix of model 'spherical' is singular at x0"):
+        linearize_state(spherical, [0, 0, 0, 0])

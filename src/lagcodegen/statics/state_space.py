@@ -159,6 +159,9 @@ def linearize_state(eom: EquationsOfMotion, x0: Any, r0: Any = None, values: Map
     if values is None:
         here = {name: matrix.xreplace(at) for name, matrix in parts.items()}
         dM_here = [X.xreplace(at) for X in dM]
+        if sp.simplify(here["M"].det()) == 0:
+            raise ValueError(f"the mass matrix of model {eom.name!r} is singular at x0 = {list(point)}: "
+                             f"M = {here['M'].tolist()}; no linearization")
         solve = lambda rhs: here["M"].LUsolve(rhs)  # noqa: E731
         ud0 = solve(here["F"])
         A_lower = solve(here["dF/dq"] - sp.Matrix.hstack(*[X * ud0 for X in dM_here])).row_join(solve(here["dF/du"]))

@@ -133,8 +133,8 @@ def steady_eigenvalues(eom: EquationsOfMotion, motion: SteadyMotion, cyclic: Seq
     if eom.n_holonomic:
         raise ValueError(f"steady eigenvalues: model {eom.name!r} has holonomic constraints; reduce it to "
                          "independent coordinates first")
-    accelerations, _ = _functions(eom, values, t)
     kept_q = [i for i, name in enumerate(q_names) if name not in cyclic]
+    accelerations, _ = _functions(eom, values, t)
     kept_u = [u_names.index(name) for name in speeds]
     dependent = [j for j in range(eom.n_u) if j not in kept_u]
     n_q = eom.n_q
@@ -144,8 +144,8 @@ def steady_eigenvalues(eom: EquationsOfMotion, motion: SteadyMotion, cyclic: Seq
     K = sp.lambdify([list(eom.q) + list(eom.u)], substitute_values(eom, sp.Matrix(eom.kinematics), vals, "K"),
                     "numpy")
 
-    def reduced(s: np.ndarray) -> np.ndarray:
-        x = motion.state.astype(s.dtype)
+    def reduced(s: np.ndarray, base: np.ndarray = motion.state) -> np.ndarray:
+        x = base.astype(s.dtype)
         x[kept_q] = s[:len(kept_q)]
         x[[n_q + j for j in kept_u]] = s[len(kept_q):]
         if dependent:  # A_D u_D = -(A_I u_I + b)
@@ -162,6 +162,21 @@ def steady_eigenvalues(eom: EquationsOfMotion, motion: SteadyMotion, cyclic: Seq
         s = s0.astype(complex)
         s[k] += 1j * step
         J[:, k] = np.imag(reduced(s)) / step
+    scale = 1.0 + np.abs(J).max(initial=0.0) * (1.0 + np.abs(s0).max(initial=0.0))
+    for name in cyclic:  # the reduced system must not read it: its rates' derivative in it vanishes
+        base = motion.state.astype(complex)
+        base[q_names.index(name)] += 1j * step
+        slope = np.abs(np.imag(reduced(s0.astype(complex), base)) / step).max(initial=0.0)
+        if not slope <= 1e-8 * scale:
+            raise ValueError(f"steady eigenvalues: {name} is not cyclic in model {eom.name!r}: the reduced "
+                             f"system's rates change with it (slope {slope:.3g}); name only coordinates the "
+                             "dynamics do not read")
+    held = reduced(s0.astype(float))  # the reduced state's rates: zero on a steady motion
+    reduced_names = [q_names[i] for i in kept_q] + [u_names[j] for j in kept_u]
+    for i, rate in enumerate(held):
+        if not abs(rate) <= 1e-8 * scale:
+            raise ValueError(f"steady eigenvalues: the state {motion.state.tolist()} is no steady motion of model "
+                             f"{eom.name!r}: d/dt {reduced_names[i]} = {rate:.6g}, not 0 (find one with steady_motion)")
     return np.linalg.eigvals(J)
 
 
