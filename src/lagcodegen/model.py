@@ -464,6 +464,8 @@ class Model:
             check_well_defined(what, expr)
         self._check_input_places(exprs)
         functions = tuple(self.coordinates) + tuple(r for r in self.inputs if not isinstance(r, sp.Symbol))
+        if self.sympy_model is not None:  # Kane's speeds are functions of time of their own
+            functions += tuple(_sympy_model_speeds(self.sympy_model))
         check_declared(exprs, self.parameters, functions,
                        extra=tuple(r for r in self.inputs if isinstance(r, sp.Symbol)))
 
@@ -631,6 +633,12 @@ def _check_joints_connected(method) -> None:
         for joint in ready:
             connected.add(joint.child)
             pending.remove(joint)
+
+
+def _sympy_model_speeds(obj: Any) -> list:
+    """The speeds of a KanesMethod or System (a JointsMethod's formed method), else none."""
+    method = getattr(obj, "method", None) if isinstance(obj, me.JointsMethod) else obj
+    return list(getattr(method, "u", None) or ()) if isinstance(method, (me.KanesMethod, me.System)) else []
 
 
 def _sympy_model_coordinates(obj: Any) -> list:

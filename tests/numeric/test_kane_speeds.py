@@ -410,3 +410,32 @@ def test_a_sweep_checks_every_member_on_the_configuration_constraints():
     with pytest.raises(ValueError, match=r"member 1 \(q1 = 0\): x0 violates.*q0 = 0\.8 \(fits: 1"):
         sweep(system, {"q1": [0.6, 0.0]}, x0=x0, t_end=0.1, h=0.01, params=INERTIA)
     assert sweep(system, {"I1": [1.0, 2.0]}, x0=x0, t_end=0.1, h=0.01, params=INERTIA).status.tolist() == [0, 0]
+
+
+def test_a_kane_measurement_reads_speeds_and_coordinate_rates(tmp_path):
+    # found by review: q' was refused as "an input to list", u as "not a coordinate". With
+    # u2 = q1' + q2' (absolute angle rate), q2' = u2 - u1 (by hand) and u2 itself are measured.
+    q1, q2, u1, u2, T1 = me.dynamicsymbols("q1 q2 u1 u2 T1")
+    m, l, g = sp.symbols("m l g", positive=True)
+    N = me.ReferenceFrame("N")
+    A = N.orientnew("A", "Axis", [q1, N.z])
+    B = A.orientnew("B", "Axis", [q2, A.z])
+    A.set_ang_vel(N, u1 * N.z)
+    B.set_ang_vel(N, u2 * N.z)
+    O = me.Point("O")
+    O.set_vel(N, 0)
+    P1 = O.locatenew("P1", l * A.x)
+    P1.v2pt_theory(O, N, A)
+    P2 = P1.locatenew("P2", l * B.x)
+    P2.v2pt_theory(P1, N, B)
+    kane = me.KanesMethod(N, q_ind=[q1, q2], u_ind=[u1, u2], kd_eqs=[q1.diff() - u1, q2.diff() - (u2 - u1)])
+    kane.kanes_equations([me.Particle("a", P1, m), me.Particle("b", P2, m)],
+                         [(P1, -m * g * N.x), (P2, -m * g * N.x), (A, T1 * N.z)])
+    model = Model("kane_measured", parameters=[m, l, g], sympy_model=kane, inputs=[T1],
+                  measurements={"relative_rate": q2.diff(), "absolute_rate": u2, "work_rate": T1 * u1},
+                  parameter_values={"m": 1.0, "l": 1.0, "g": 9.81})
+    system = compile_model(model, methods=("rk4",), cache_dir=tmp_path)
+    run = simulate(system, {"q1": 0.3, "q2": 0.2, "u1": 0.1, "u2": -0.4}, t_end=0.5, h=1e-3, inputs=0.7)
+    np.testing.assert_allclose(run["relative_rate"], run["u2"] - run["u1"], rtol=1e-14, atol=1e-15)
+    np.testing.assert_allclose(run["absolute_rate"], run["u2"], rtol=0, atol=0)
+    np.testing.assert_allclose(run["work_rate"], 0.7 * run["u1"], rtol=1e-15)

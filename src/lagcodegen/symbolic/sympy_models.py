@@ -54,7 +54,11 @@ def derive_from_sympy(model: Model):
     renamed = make_substitution(coords, speeds, q, u, "sympy model", inputs=model.inputs)
     zero = {a: 0 for a in auxiliary} | {a.diff(TIME): 0 for a in auxiliary}
 
+    rates = {} if isinstance(method, me.LagrangesMethod) else {c.diff(TIME): k for c, k in zip(coords, kin_dynamic)}
+
     def to_plain(expr, what):  # auxiliary speeds are zero in the equations of motion
+        if what.startswith("measurement") and rates:  # a measurement may read q' (Kane's qd = K(q, u))
+            expr = sp.sympify(expr).xreplace(rates)
         return renamed(sp.sympify(expr).xreplace(zero) if zero and expr is not None else expr, what)
     terms = None
     if isinstance(method, me.KanesMethod):
@@ -64,8 +68,7 @@ def derive_from_sympy(model: Model):
         terms = kane_terms(method, kindiff, to_plain, motion, inputs=plain_inputs, known=known)
         if terms is None and n_dependent:
             method = _every_speed_independent(method, kindiff)
-    qdot_table = {} if isinstance(method, me.LagrangesMethod) else {
-        c.diff(TIME): k for c, k in zip(coords, kin_dynamic)}
+    qdot_table = rates
     n_u = len(speeds)
     if terms is not None:
         M, F = terms.mass_matrix, terms.forcing
