@@ -123,6 +123,11 @@ def test_unusable_output_paths_are_refused_before_running(tmp_path, capsys):
         (["--out", ""], ["--out", "empty"]),
         (["--plot", tmp_path], ["--plot", "directory"]),
         (["--out", "/proc/lagcodegen_test.npz"], ["--out", "/proc/lagcodegen_test.npz", "cannot write"]),
+        # found by review: numpy wrote run.dat.npz while the CLI said "wrote run.dat"; a figure format
+        # matplotlib lacks failed only after the run, its error naming no option
+        (["--out", tmp_path / "run.dat"], ["--out", "run.dat", "ending in .npz", "run.dat.npz"]),
+        (["--plot", tmp_path / "run.xyz"], ["--plot", "run.xyz", "'xyz' is not one matplotlib writes", "png"]),
+        (["--plot", tmp_path / "run"], ["--plot", "'(none)'"]),
     ]
     for extra, culprits in cases:
         message = one_line_error(["simulate", *DP, *extra], capsys)

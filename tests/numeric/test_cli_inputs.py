@@ -58,6 +58,20 @@ def test_a_csv_table_on_a_first_order_hold(model_file, tmp_path, capsys):
     assert final_x(capsys.readouterr().out) == pytest.approx(step_response(2.0, 1.0), abs=1e-8)
 
 
+def test_the_saved_run_keeps_the_inputs(model_file, tmp_path, capsys):
+    # found by review: --out dropped the inputs (and measurements, residuals, multipliers)
+    out = tmp_path / "run.npz"
+    code = main(["simulate", str(model_file), "--t-end", "1", "--h", "1e-3", "--x0", "x=0", "--input", "F=1.5",
+                 "--out", str(out)])
+    assert code == 0
+    data = np.load(out)
+    assert data["input_names"].tolist() == ["F"] and str(data["hold"]) == "zoh"
+    np.testing.assert_array_equal(data["inputs"], np.full((1001, 1), 1.5))
+    np.testing.assert_allclose(data["x"][:, 0], step_response(data["t"], 1.5), atol=1e-10)
+    assert data["measurement_names"].tolist() == ["spring_force"]
+    np.testing.assert_allclose(data["measurements"][:, 0], -4.0 * data["x"][:, 0], rtol=1e-15)  # -k x
+
+
 def test_a_sweep_over_the_input(model_file, tmp_path, capsys):
     out = tmp_path / "sweep.npz"
     code = main(["sweep", str(model_file), "--t-end", "2", "--h", "1e-3", "--x0", "x=0", "--grid", "F=0.5,2",

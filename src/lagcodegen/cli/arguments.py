@@ -258,8 +258,10 @@ SIMULATE_EPILOG = """examples:
   lagcodegen simulate stiff_chain --t-end 1 --h 1e-4 --method implicit_midpoint --x0 x1=0.1,x2=0,x3=0
 
 The .npz holds t (n_out,), x (n_out, 2n), names, energy (with --energy), points and point_names
-(models with named points), status, status_name, message, model, method, h, t_end, stride, x0,
-parameters and p (free parameter values used), fixed_names and fixed_values.
+(models with named points), inputs, input_names and hold (driven models), measurements and
+measurement_names (models with measurements), residuals and multipliers (constrained models),
+status, status_name, message, model, method, h, t_end, stride, x0, parameters and p (free parameter
+values used), fixed_names and fixed_values.
 Exit code 0 when the run completed, 1 when it stopped early (singular mass matrix, divergence) or the
 build failed, 2 for a bad command line (one line on stderr naming the culprit).
 """

@@ -105,9 +105,11 @@ def format_bytes(size: float) -> str:
     return f"{size:.3g} TiB"
 
 
-def check_output_file(path: str | None, option: str) -> None:
+def check_output_file(path: str | None, option: str, kind: str = "npz") -> None:
     """Fail before any work when ``path`` (a file to write) is empty, a directory, in a missing
-    directory, or cannot be opened for writing (tried: os.access says yes to root everywhere)."""
+    directory, cannot be opened for writing (tried: os.access says yes to root everywhere), or
+    does not end as its ``kind`` must: ``"npz"`` (numpy appends .npz to any other name) or
+    ``"figure"`` (a format matplotlib writes)."""
     if path is None:
         return
     if not path.strip():
@@ -117,6 +119,16 @@ def check_output_file(path: str | None, option: str) -> None:
         raise UsageError(f"{option} {path}: is a directory; give a file name")
     if not target.parent.is_dir():
         raise UsageError(f"{option} {path}: {target.parent} is not an existing directory")
+    suffix = target.suffix.lower().lstrip(".")
+    if kind == "npz" and suffix != "npz":
+        raise UsageError(f"{option} {path}: give a file name ending in .npz (numpy would write {path}.npz)")
+    if kind == "figure":
+        from matplotlib.figure import Figure
+
+        formats = Figure().canvas.get_supported_filetypes()
+        if suffix not in formats:
+            raise UsageError(f"{option} {path}: the figure format {suffix or '(none)'!r} is not one matplotlib "
+                             f"writes ({', '.join(sorted(formats))})")
     existed = target.exists()
     try:
         with open(target, "ab"):
@@ -188,7 +200,7 @@ def cmd_simulate(args) -> int:
     from ..run.simulate import parameter_vector, simulate
 
     check_output_file(args.out, "--out")
-    check_output_file(args.plot, "--plot")
+    check_output_file(args.plot, "--plot", "figure")
     eom, fixed, params, x0 = prepare_run(args, "simulate")
     steps = check_steps(args, eom.n_state + bool(args.energy))
     if args.energy and eom.energy is None:
@@ -229,6 +241,13 @@ def cmd_simulate(args) -> int:
         extra = {} if run.energy is None else {"energy": run.energy}
         if run.points is not None:
             extra |= {"points": run.points, "point_names": np.array(run.point_names)}
+        if run.inputs is not None:
+            extra |= {"inputs": run.inputs, "input_names": np.array(run.input_names), "hold": args.hold}
+        if run.measurements is not None:
+            extra |= {"measurements": run.measurements, "measurement_names": np.array(run.measurement_names)}
+        for name in ("residuals", "multipliers"):
+            if getattr(run, name) is not None:
+                extra[name] = getattr(run, name)
         np.savez(args.out, t=run.t, x=run.x, names=np.array(run.names), status=int(run.status),
                  status_name=run.status.name, message=run.message, model=eom.name, method=run.method,
                  h=args.h, t_end=args.t_end, stride=args.stride, x0=run.x[0],
@@ -336,7 +355,7 @@ def cmd_sweep(args) -> int:
     if bool(args.grid) == bool(args.table):
         raise UsageError("give the members either with --grid (repeatable) or with --table")
     check_output_file(args.out, "--out")
-    check_output_file(args.heatmap, "--heatmap")
+    check_output_file(args.heatmap, "--heatmap", "figure")
     if args.scheduler is not None and not args.scheduler.strip():  # Client("") would start a local cluster
         raise UsageError("--scheduler is given an empty address; give one like tcp://host:8786")
     members = parse_grid(args.grid) if args.grid else read_table(args.table)
