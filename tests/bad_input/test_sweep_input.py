@@ -113,3 +113,17 @@ def test_kept_trajectories_beyond_memory_are_refused_with_a_stride(pendulum):
         sweep(pendulum, GRID, trajectories=True, max_output_bytes=90_000, **(COMMON | {"t_end": 10.0}))
     kept = sweep(pendulum, GRID, trajectories=True, stride=10, max_output_bytes=90_000, **(COMMON | {"t_end": 10.0}))
     assert kept.completed and kept.trajectories.shape == (3, 101, 4)
+
+
+def test_the_stride_a_refusal_suggests_fits_and_is_the_least_that_does(pendulum):
+    # found by review: the hint spread the per-member arrays over the samples, and the stride it named
+    # was refused again with a larger one
+    import re
+
+    grid, run = {"m2": np.linspace(0.5, 2.0, 10)}, COMMON | {"t_end": 10.0}
+    with pytest.raises(OutputTooLargeError) as refused:
+        sweep(pendulum, grid, trajectories=True, max_output_bytes=4000, **run)
+    stride = int(re.search(r"stride >= (\d+)", str(refused.value)).group(1))
+    assert sweep(pendulum, grid, trajectories=True, stride=stride, max_output_bytes=4000, **run).completed
+    with pytest.raises(OutputTooLargeError):
+        sweep(pendulum, grid, trajectories=True, stride=stride - 1, max_output_bytes=4000, **run)

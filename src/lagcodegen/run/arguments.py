@@ -142,15 +142,26 @@ def output_bytes(layout, n_steps: int, stride: int = 1, *, n_members: int = 1, e
     return n_members * (n_steps // stride + 1) * per_sample * itemsize
 
 
-def check_output_size(nbytes: int, n_steps: int, stride: int, what: str, limit: int | None = None) -> None:
+def check_output_size(nbytes: int, n_steps: int, stride: int, what: str, limit: int | None = None,
+                      size_of=None) -> None:
     """Refuse (`OutputTooLargeError`) when ``nbytes`` of kept samples exceed ``limit`` (default
-    `output_limit`), naming the size and the smallest stride that fits."""
-    if nbytes <= (output_limit() if limit is None else limit):
+    `output_limit`), naming the size and the smallest stride that fits: by bisection on
+    ``size_of(stride)`` (the bytes at that stride, fixed parts included) when given, else with
+    ``nbytes`` taken as proportional to the samples."""
+    bound = output_limit() if limit is None else limit
+    if nbytes <= bound:
         return
     samples = n_steps // stride + 1
-    fitting = int((output_limit() if limit is None else limit) // (nbytes // samples))  # samples that fit
-    smallest = n_steps // fitting + 1 if fitting else n_steps + 1  # n_steps // stride + 1 <= fitting
-    hint = f"keep fewer samples with stride >= {smallest}" if smallest <= n_steps else "run fewer members"
+    if size_of is None:
+        size_of = lambda s: nbytes * (n_steps // s + 1) / samples  # noqa: E731
+    smallest = None
+    if size_of(n_steps) <= bound:  # the size does not grow with the stride: bisect for the least that fits
+        low, high = stride, n_steps  # size_of(low) > bound >= size_of(high)
+        while high - low > 1:
+            middle = (low + high) // 2
+            low, high = (low, middle) if size_of(middle) <= bound else (middle, high)
+        smallest = high
+    hint = f"keep fewer samples with stride >= {smallest}" if smallest is not None else "run fewer members"
     check_memory(nbytes, f"{what} would keep {samples} samples", hint, limit)
 
 

@@ -321,9 +321,11 @@ def simulate(system: CompiledSystem, x0, t_end: float, h: float, method: str = "
                        multipliers=multipliers)
     tolerance = resolve_drift_tolerance(system.layout, drift_tolerance)
     track = bool(tolerance is not None or outputs["residuals"])
-    nbytes = output_bytes(system.layout, n_steps, stride, energy=outputs["energy"], points=outputs["points"],
-                          residuals=track, multipliers=outputs["multipliers"])
-    check_output_size(nbytes, n_steps, stride, "the run", max_output_bytes)
+    def size_of(every: int) -> int:
+        return output_bytes(system.layout, n_steps, every, energy=outputs["energy"], points=outputs["points"],
+                            residuals=track, multipliers=outputs["multipliers"])
+
+    check_output_size(size_of(stride), n_steps, stride, "the run", max_output_bytes, size_of)
     if flag(check_stability, "check_stability"):
         r0 = None if signal is None or callable(signal) else signal.at(t0)
         warn_if_unstable(system, x, p, h, method, t0, n_steps, r=r0)

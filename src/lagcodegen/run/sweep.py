@@ -276,11 +276,12 @@ def _check_sweep_size(layout, n_members: int, n_columns: int, n_steps: int, stri
     itemsize = 4 if layout.precision == "float" else 8
     # values (n_columns doubles), x0 and x_final (2n each), q_max (n), p, energy error, status, steps
     per_member = 8 * n_columns + itemsize * (2 * layout.n_state + layout.n_q + len(layout.parameters) + 2) + 4 + 8
-    kept = output_bytes(layout, n_steps, stride, n_members=n_members, trajectory=trajectories)
-    kept -= itemsize * n_members * (n_steps // stride + 1) if trajectories else 0  # no t per member
+    def size_of(every: int) -> int:  # no t per member
+        kept = output_bytes(layout, n_steps, every, n_members=n_members, trajectory=trajectories)
+        return kept - itemsize * n_members * (n_steps // every + 1) + n_members * per_member
+
     if trajectories:
-        check_output_size(kept + n_members * per_member, n_steps, stride,
-                          f"the sweep of {n_members} members", limit)
+        check_output_size(size_of(stride), n_steps, stride, f"the sweep of {n_members} members", limit, size_of)
     check_memory(n_members * per_member, f"the sweep of {n_members} members would need",
                  "sweep fewer members (a coarser grid)", limit)
 
