@@ -455,3 +455,13 @@ def test_cli_frames_on_a_model_without_rigid_bodies_is_named(tmp_path, capsys):
                  "--out", str(tmp_path / "s.gif")])
     assert code == 2
     assert "--frames: model 'double_pendulum' has no rigid bodies" in capsys.readouterr().err
+
+
+def test_a_speed_that_asks_for_too_many_frames_is_refused(pendulum_run):
+    # found by review: --speed 1e-5 started rendering 750000 GIF frames (1e-9: out of memory)
+    _, run = pendulum_run
+    span = float(run.t[-1] - run.t[0])
+    with pytest.raises(AnimationError, match=r"at speed 1e-05 and 25 frames per second would take .* frames, more "
+                                             r"than 18000: raise the speed"):
+        compose_scene(run, fps=25, speed=1e-5)
+    assert compose_scene(run, fps=25, speed=span * 25 / 17_000).n_frames > 16_000  # just under the bound

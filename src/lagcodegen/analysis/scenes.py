@@ -125,13 +125,24 @@ def project(positions: np.ndarray, projection=None) -> tuple[np.ndarray, tuple]:
     return positions @ screen.T, (f"u (view from {view})", "v")
 
 
+#: frames an animation may have: 10 minutes at 30 fps, far beyond what anyone watches, and a
+#: bound on the memory and time a slip of ``speed`` (1e-5 for 1e-1) would take
+MAX_FRAMES = 18_000
+
+
 def frame_samples(t: np.ndarray, interval: float, speed: float) -> np.ndarray:
     """Indices into ``t`` (n_samples,) of the frames: the sample nearest each frame time
-    ``t[0] + k * speed * interval / 1000`` up to ``t[-1]``; shape (n_frames,)."""
+    ``t[0] + k * speed * interval / 1000`` up to ``t[-1]``; shape (n_frames,). More than
+    `MAX_FRAMES` frames raise `AnimationError`, naming the speed."""
     t = np.asarray(t, dtype=np.float64)
     step = speed * interval / 1000.0
     span = float(t[-1] - t[0])
-    n_frames = int(math.floor(span / step * (1 + 1e-12))) + 1
+    frames = span / step * (1 + 1e-12)
+    if not frames < MAX_FRAMES:
+        raise AnimationError(f"{span:g} s of motion at speed {speed:g} and {1000.0 / interval:g} frames per second "
+                             f"would take {frames:.3g} frames, more than {MAX_FRAMES}: raise the speed, lower the "
+                             "fps or animate a shorter run")
+    n_frames = int(math.floor(frames)) + 1
     targets = t[0] + step * np.arange(n_frames)
     right = np.clip(np.searchsorted(t, targets), 1, max(len(t) - 1, 1))
     left = right - 1
