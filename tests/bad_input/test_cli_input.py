@@ -73,6 +73,8 @@ def one_line_error(argv, capsys) -> str:
       "--trajectories"], ["--stride", "TiB"]),
     # malformed grids and tables
     (["sweep", "double_pendulum", *RUN, "--x0", "q1=1,q2=0", "--grid", "m2=1:2"], ["--grid", "'m2'", "1:2"]),
+    # found by review: an empty value was dropped silently (a member fewer)
+    (["sweep", "double_pendulum", *RUN, "--x0", "q1=1,q2=0", "--grid", "m2=1,,2"], ["--grid", "'m2'", "empty value"]),
     (["sweep", "double_pendulum", *RUN, "--x0", "q1=1,q2=0", "--grid", "m2"], ["--grid", "'m2'"]),
     (["sweep", "double_pendulum", *RUN, "--x0", "q1=1,q2=0", "--grid", ""], ["--grid", "''"]),
     (["sweep", "double_pendulum", *RUN, "--x0", "q1=1,q2=0", "--grid", "zz=1,2"], ["'zz'", "--grid"]),

@@ -117,6 +117,8 @@ def test_work_precision_records_and_order(chain):
     assert all(r.ok and r.seconds > 0 and r.h == pytest.approx(1.0 / r.n_steps) for r in records)
     assert measures.observed_order([r.h for r in records], [r.error for r in records]) == pytest.approx(4.0, abs=0.15)
     diverged = measures.work_precision(chain, CHAIN_X0, 1.0, ["rk4"], [20], reference=exact, repeats=1)[0]
+    with pytest.raises(ValueError, match=r"steps\[1\] must be a positive integer, got 0"):  # found by review
+        measures.work_precision(chain, CHAIN_X0, 1.0, ["rk4"], [20, 0], reference=exact, repeats=1)
     assert diverged.error > 1.0 or not diverged.ok  # h w = 7.1 > 2.83: unstable
 
 

@@ -194,6 +194,17 @@ def test_sweep_table_and_failures(tmp_path, capsys):
     assert_png(png)
 
 
+def test_a_table_saved_with_a_byte_order_mark_reads(tmp_path, capsys):
+    # found by review: a spreadsheet's UTF-8 byte-order mark made the first name '\ufeffm2', unknown
+    table = tmp_path / "members.csv"
+    table.write_bytes("m2,l2\n1,2\n3,4\n".encode("utf-8-sig"))
+    out = tmp_path / "bom.npz"
+    code, _ = run_cli(["sweep", "double_pendulum", "--table", table, "--t-end", "0.01", "--h", "1e-3",
+                       "--x0", "q1=1,q2=0.5", "--out", out], capsys)
+    assert code == 0
+    np.testing.assert_array_equal(np.load(out)["values"], [[1, 2], [3, 4]])
+
+
 def test_sweep_reports_a_failed_chunk_and_exits_non_zero(tmp_path, capsys, monkeypatch):
     """A chunk that raises (a lost worker, a bug) used to be summed up as an interruption: now the
     command names the members and the error, counts them apart from members not run, and exits 1."""

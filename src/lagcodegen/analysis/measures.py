@@ -20,6 +20,7 @@ import numpy as np
 
 from ..integrators.schemes import get_scheme
 from ..native.build import CompiledSystem
+from ..run.arguments import positive_int
 from ..run.simulate import Trajectory, initial_state, jacobian, make_rhs, parameter_vector, simulate, solve_reference
 
 #: Growth of the energy (or scaled state norm) over a run that counts as "unbounded".
@@ -162,12 +163,13 @@ def work_precision(system: CompiledSystem, x0, t_end: float, methods: Sequence[s
     list of WorkRecord
         In the order methods x steps. A diverged run has ``ok=False`` and ``error=inf``.
     """
+    steps = [positive_int(n, f"steps[{i}]") for i, n in enumerate(steps)]
     x_ref = reference_state(system, x0, t_end, params=params) if reference is None else np.asarray(reference)
     x = initial_state(system, x0)
     records = []
     for method in methods:
         for n in steps:
-            n, h = int(n), float(t_end) / int(n)
+            h = float(t_end) / n
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", RuntimeWarning)  # a diverged run is a data point
                 seconds, traj = _best_time(lambda: simulate(system, x, t_end, h, method, params=params,

@@ -167,7 +167,7 @@ def _input_table(name: str, path: Path) -> tuple:
     if not path.is_file():
         raise UsageError(f"--input {name}: {str(path)!r} is neither a number nor a file")
     try:
-        rows = [line for line in path.read_text().splitlines() if line.strip()]
+        rows = [line for line in path.read_text(encoding="utf-8-sig").splitlines() if line.strip()]
         if rows and not rows[0].lstrip()[:1].lstrip("+-.").isdigit():
             rows = rows[1:]  # a header
         table = np.array([[float(v) for v in row.split(",")] for row in rows], dtype=float)
@@ -188,8 +188,13 @@ def parse_axis(item: str) -> tuple:
     if not sep or not name or not spec.strip():
         raise UsageError(f"--grid {item!r} must look like name=start:stop:count[:log] or name=v1,v2,...")
     if ":" not in spec:
+        values = [v for v in spec.split(",")]
+        if not any(v.strip() for v in values):
+            return name, np.array([], dtype=float)  # "has no values" (parse_grid)
+        if any(not v.strip() for v in values):
+            raise UsageError(f"--grid {name!r}: {spec!r} has an empty value (two commas, or one at an end)")
         try:
-            return name, np.array([float(v) for v in spec.split(",") if v.strip()] or [], dtype=float)
+            return name, np.array([float(v) for v in values], dtype=float)
         except ValueError:
             raise UsageError(f"--grid {name!r}: {spec!r} is not a comma-separated list "
                              "of numbers") from None
@@ -231,7 +236,7 @@ def read_table(path: str) -> dict:
     import numpy as np
 
     try:
-        with open(path, newline="") as handle:
+        with open(path, newline="", encoding="utf-8-sig") as handle:  # -sig: a spreadsheet's byte-order mark
             rows = [row for row in csv.reader(handle) if any(cell.strip() for cell in row)]
     except OSError as error:
         raise UsageError(f"--table {path}: {error.strerror}") from None
