@@ -100,18 +100,23 @@ def test_solve_reference_reads_the_same_signal(oscillator):
                                atol=1e-10)
 
 
-def rk4_held(r_steps, h, n_steps):
-    """Numpy RK4 with r_k held over step k: the discrete plant x+ = step(x, r)."""
+def rk4_loop(stage_input, h, n_steps):
+    """Numpy RK4 from rest whose stage at the fraction c of step k takes the input stage_input(k, c)."""
     y, out = np.zeros(2), [np.zeros(2)]
     for k in range(n_steps):
-        f = numpy_rhs(lambda t, y, r=r_steps[k]: r)
+        f = numpy_rhs(lambda c, y, k=k: stage_input(k, c))
         k1 = f(0, y)
-        k2 = f(0, y + h / 2 * k1)
-        k3 = f(0, y + h / 2 * k2)
-        k4 = f(0, y + h * k3)
+        k2 = f(0.5, y + h / 2 * k1)
+        k3 = f(0.5, y + h / 2 * k2)
+        k4 = f(1, y + h * k3)
         y = y + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
         out.append(y)
     return np.array(out)
+
+
+def rk4_held(r_steps, h, n_steps):
+    """r_k held over step k: the discrete plant x+ = step(x, r)."""
+    return rk4_loop(lambda k, c: r_steps[k], h, n_steps)
 
 
 def test_an_array_per_step_is_held_over_each_step(oscillator):
@@ -184,18 +189,8 @@ def test_inputs_by_name_merge_tables_and_constants(tmp_path):
 
 
 def rk4_ramped(r_at, h, n_steps):
-    """Numpy RK4 with the stages of step k on the line from r_at(t_k) to r_at(t_k + h) (a first-order hold)."""
-    y, out = np.zeros(2), [np.zeros(2)]
-    for k in range(n_steps):
-        a, b = r_at(k * h), r_at((k + 1) * h)
-        f = numpy_rhs(lambda t, y, a=a, b=b: a + (b - a) * t)
-        k1 = f(0, y)
-        k2 = f(0.5, y + h / 2 * k1)
-        k3 = f(0.5, y + h / 2 * k2)
-        k4 = f(1, y + h * k3)
-        y = y + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-        out.append(y)
-    return np.array(out)
+    """The stages of step k on the line from r_at(t_k) to r_at(t_k + h) (a first-order hold)."""
+    return rk4_loop(lambda k, c: r_at(k * h) + (r_at((k + 1) * h) - r_at(k * h)) * c, h, n_steps)
 
 
 def test_an_array_per_stride_on_a_first_order_hold_is_the_line_between_rows(oscillator):
