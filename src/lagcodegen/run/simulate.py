@@ -321,6 +321,7 @@ def simulate(system: CompiledSystem, x0, t_end: float, h: float, method: str = "
                        multipliers=multipliers)
     tolerance = resolve_drift_tolerance(system.layout, drift_tolerance)
     track = bool(tolerance is not None or outputs["residuals"])
+
     def size_of(every: int) -> int:
         return output_bytes(system.layout, n_steps, every, energy=outputs["energy"], points=outputs["points"],
                             residuals=track, multipliers=outputs["multipliers"])

@@ -130,6 +130,9 @@ def check_member_starts(system: CompiledSystem, xs, ps, t0: float, columns, valu
     from .simulate import check_start, start_offsets
 
     layout = system.layout
+    configured = f"{layout.prefix}_project" in layout.functions and not layout.n_constraints
+    if not (layout.dependent_speeds or configured or layout.n_constraints):
+        return  # nothing a start can violate
     n_p = len(layout.parameters)
     tolerance = DRIFT_TOLERANCE[layout.precision]
     off = []

@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 import sympy as sp
+from sympy.matrices.exceptions import NonInvertibleMatrixError
 
 from ..symbolic.derive import EquationsOfMotion
 from .equilibria import input_point, named_point, resolve_values, substitute_values
@@ -159,11 +160,12 @@ def linearize_state(eom: EquationsOfMotion, x0: Any, r0: Any = None, values: Map
     if values is None:
         here = {name: matrix.xreplace(at) for name, matrix in parts.items()}
         dM_here = [X.xreplace(at) for X in dM]
-        if sp.simplify(here["M"].det()) == 0:
-            raise ValueError(f"the mass matrix of model {eom.name!r} is singular at x0 = {list(point)}: "
-                             f"M = {here['M'].tolist()}; no linearization")
         solve = lambda rhs: here["M"].LUsolve(rhs)  # noqa: E731
-        ud0 = solve(here["F"])
+        try:
+            ud0 = solve(here["F"])
+        except NonInvertibleMatrixError:
+            raise ValueError(f"the mass matrix of model {eom.name!r} is singular at x0 = {list(point)}: "
+                             f"M = {here['M'].tolist()}; no linearization") from None
         A_lower = solve(here["dF/dq"] - sp.Matrix.hstack(*[X * ud0 for X in dM_here])).row_join(solve(here["dF/du"]))
         A = here["dK/dx"].col_join(A_lower)
         B = here["dK/dr"].col_join(solve(here["dF/dr"])) if r else sp.zeros(eom.n_state, 0)
