@@ -430,12 +430,21 @@ static int lcg_cartesian_pendulum_rk4_step(double t, double *x, const double *pa
 #endif /* LCG_BUILD_PART != 1 */
 
 #if LCG_BUILD_PART != 2
-/* classical Runge-Kutta (order 4): advance (t, x) by one step h; work holds 25 values. */
+/* classical Runge-Kutta (order 4): advance (t, x) by one step h; work holds 25 values. A step
+ * that fails, LCG_NONFINITE_STATE for a new state that is not finite included, leaves t and x as they were. */
 int lcg_cartesian_pendulum_step_rk4(double *t, double *x, const double *p, double h, double *work)
 {
-    int status = lcg_cartesian_pendulum_rk4_step(*t, x, p, h, work, work + 20);
-    if (status == LCG_OK) *t += h;
-    return status;
+    double before[4];
+    int i, status;
+    for (i = 0; i < 4; ++i) before[i] = x[i];
+    status = lcg_cartesian_pendulum_rk4_step(*t, x, p, h, work, work + 20);
+    if (status == LCG_OK && !lcg_cartesian_pendulum_finite(x)) status = LCG_NONFINITE_STATE;
+    if (status != LCG_OK) {
+        for (i = 0; i < 4; ++i) x[i] = before[i];
+        return status;
+    }
+    *t += h;
+    return LCG_OK;
 }
 #endif
 #if LCG_BUILD_PART != 2

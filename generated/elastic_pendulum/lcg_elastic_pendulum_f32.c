@@ -557,32 +557,59 @@ static int lcg_elastic_pendulum_f32_symplectic_euler_step(float t, float *x, con
 #endif /* LCG_BUILD_PART != 1 */
 
 #if LCG_BUILD_PART != 2
-/* classical Runge-Kutta (order 4): advance (t, x) by one step h; work holds 22 values. */
+/* classical Runge-Kutta (order 4): advance (t, x) by one step h; work holds 22 values. A step
+ * that fails, LCG_NONFINITE_STATE for a new state that is not finite included, leaves t and x as they were. */
 int lcg_elastic_pendulum_f32_step_rk4(float *t, float *x, const float *p, float h, float *work)
 {
-    int status = lcg_elastic_pendulum_f32_rk4_step(*t, x, p, h, work, work + 20);
-    if (status == LCG_OK) *t += h;
-    return status;
+    float before[4];
+    int i, status;
+    for (i = 0; i < 4; ++i) before[i] = x[i];
+    status = lcg_elastic_pendulum_f32_rk4_step(*t, x, p, h, work, work + 20);
+    if (status == LCG_OK && !lcg_elastic_pendulum_f32_finite(x)) status = LCG_NONFINITE_STATE;
+    if (status != LCG_OK) {
+        for (i = 0; i < 4; ++i) x[i] = before[i];
+        return status;
+    }
+    *t += h;
+    return LCG_OK;
 }
 #endif
 
 #if LCG_BUILD_PART != 1
-/* symplectic (semi-implicit) Euler, momentum form (order 1): advance (t, x) by one step h; work holds 28 values. */
+/* symplectic (semi-implicit) Euler, momentum form (order 1): advance (t, x) by one step h; work holds 28 values. A step
+ * that fails, LCG_NONFINITE_STATE for a new state that is not finite included, leaves t and x as they were. */
 int lcg_elastic_pendulum_f32_step_symplectic_euler(float *t, float *x, const float *p, float h, float *work)
 {
-    int status = lcg_elastic_pendulum_f32_symplectic_euler_step(*t, x, p, h, work, work + 26);
-    if (status == LCG_OK) *t += h;
-    return status;
+    float before[4];
+    int i, status;
+    for (i = 0; i < 4; ++i) before[i] = x[i];
+    status = lcg_elastic_pendulum_f32_symplectic_euler_step(*t, x, p, h, work, work + 26);
+    if (status == LCG_OK && !lcg_elastic_pendulum_f32_finite(x)) status = LCG_NONFINITE_STATE;
+    if (status != LCG_OK) {
+        for (i = 0; i < 4; ++i) x[i] = before[i];
+        return status;
+    }
+    *t += h;
+    return LCG_OK;
 }
 #endif
 
 #if LCG_BUILD_PART != 1
-/* implicit midpoint, Gauss s=1 (order 2): advance (t, x) by one step h; work holds 50 values. */
+/* implicit midpoint, Gauss s=1 (order 2): advance (t, x) by one step h; work holds 50 values. A step
+ * that fails, LCG_NONFINITE_STATE for a new state that is not finite included, leaves t and x as they were. */
 int lcg_elastic_pendulum_f32_step_implicit_midpoint(float *t, float *x, const float *p, float h, float *work)
 {
-    int status = lcg_elastic_pendulum_f32_irk_step(1, lcg_elastic_pendulum_f32_implicit_midpoint_a, lcg_elastic_pendulum_f32_implicit_midpoint_b, lcg_elastic_pendulum_f32_implicit_midpoint_c, *t, x, p, h, work, work + 48);
-    if (status == LCG_OK) *t += h;
-    return status;
+    float before[4];
+    int i, status;
+    for (i = 0; i < 4; ++i) before[i] = x[i];
+    status = lcg_elastic_pendulum_f32_irk_step(1, lcg_elastic_pendulum_f32_implicit_midpoint_a, lcg_elastic_pendulum_f32_implicit_midpoint_b, lcg_elastic_pendulum_f32_implicit_midpoint_c, *t, x, p, h, work, work + 48);
+    if (status == LCG_OK && !lcg_elastic_pendulum_f32_finite(x)) status = LCG_NONFINITE_STATE;
+    if (status != LCG_OK) {
+        for (i = 0; i < 4; ++i) x[i] = before[i];
+        return status;
+    }
+    *t += h;
+    return LCG_OK;
 }
 #endif
 #if LCG_BUILD_PART != 2

@@ -562,12 +562,21 @@ static int lcg_four_bar_f32_rk4_step(float t, float *x, const float *parameters,
 #endif /* LCG_BUILD_PART != 1 */
 
 #if LCG_BUILD_PART != 2
-/* classical Runge-Kutta (order 4): advance (t, x) by one step h; work holds 41 values. */
+/* classical Runge-Kutta (order 4): advance (t, x) by one step h; work holds 41 values. A step
+ * that fails, LCG_NONFINITE_STATE for a new state that is not finite included, leaves t and x as they were. */
 int lcg_four_bar_f32_step_rk4(float *t, float *x, const float *p, float h, float *work)
 {
-    int status = lcg_four_bar_f32_rk4_step(*t, x, p, h, work, work + 30);
-    if (status == LCG_OK) *t += h;
-    return status;
+    float before[6];
+    int i, status;
+    for (i = 0; i < 6; ++i) before[i] = x[i];
+    status = lcg_four_bar_f32_rk4_step(*t, x, p, h, work, work + 30);
+    if (status == LCG_OK && !lcg_four_bar_f32_finite(x)) status = LCG_NONFINITE_STATE;
+    if (status != LCG_OK) {
+        for (i = 0; i < 6; ++i) x[i] = before[i];
+        return status;
+    }
+    *t += h;
+    return LCG_OK;
 }
 #endif
 #if LCG_BUILD_PART != 2

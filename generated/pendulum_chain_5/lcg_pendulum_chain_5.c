@@ -1252,32 +1252,59 @@ static int lcg_pendulum_chain_5_symplectic_euler_step(double t, double *x, const
 #endif /* LCG_BUILD_PART != 1 */
 
 #if LCG_BUILD_PART != 2
-/* classical Runge-Kutta (order 4): advance (t, x) by one step h; work holds 55 values. */
+/* classical Runge-Kutta (order 4): advance (t, x) by one step h; work holds 55 values. A step
+ * that fails, LCG_NONFINITE_STATE for a new state that is not finite included, leaves t and x as they were. */
 int lcg_pendulum_chain_5_step_rk4(double *t, double *x, const double *p, double h, double *work)
 {
-    int status = lcg_pendulum_chain_5_rk4_step(*t, x, p, h, work, work + 50);
-    if (status == LCG_OK) *t += h;
-    return status;
+    double before[10];
+    int i, status;
+    for (i = 0; i < 10; ++i) before[i] = x[i];
+    status = lcg_pendulum_chain_5_rk4_step(*t, x, p, h, work, work + 50);
+    if (status == LCG_OK && !lcg_pendulum_chain_5_finite(x)) status = LCG_NONFINITE_STATE;
+    if (status != LCG_OK) {
+        for (i = 0; i < 10; ++i) x[i] = before[i];
+        return status;
+    }
+    *t += h;
+    return LCG_OK;
 }
 #endif
 
 #if LCG_BUILD_PART != 1
-/* symplectic (semi-implicit) Euler, momentum form (order 1): advance (t, x) by one step h; work holds 115 values. */
+/* symplectic (semi-implicit) Euler, momentum form (order 1): advance (t, x) by one step h; work holds 115 values. A step
+ * that fails, LCG_NONFINITE_STATE for a new state that is not finite included, leaves t and x as they were. */
 int lcg_pendulum_chain_5_step_symplectic_euler(double *t, double *x, const double *p, double h, double *work)
 {
-    int status = lcg_pendulum_chain_5_symplectic_euler_step(*t, x, p, h, work, work + 110);
-    if (status == LCG_OK) *t += h;
-    return status;
+    double before[10];
+    int i, status;
+    for (i = 0; i < 10; ++i) before[i] = x[i];
+    status = lcg_pendulum_chain_5_symplectic_euler_step(*t, x, p, h, work, work + 110);
+    if (status == LCG_OK && !lcg_pendulum_chain_5_finite(x)) status = LCG_NONFINITE_STATE;
+    if (status != LCG_OK) {
+        for (i = 0; i < 10; ++i) x[i] = before[i];
+        return status;
+    }
+    *t += h;
+    return LCG_OK;
 }
 #endif
 
 #if LCG_BUILD_PART != 1
-/* implicit midpoint, Gauss s=1 (order 2): advance (t, x) by one step h; work holds 245 values. */
+/* implicit midpoint, Gauss s=1 (order 2): advance (t, x) by one step h; work holds 245 values. A step
+ * that fails, LCG_NONFINITE_STATE for a new state that is not finite included, leaves t and x as they were. */
 int lcg_pendulum_chain_5_step_implicit_midpoint(double *t, double *x, const double *p, double h, double *work)
 {
-    int status = lcg_pendulum_chain_5_irk_step(1, lcg_pendulum_chain_5_implicit_midpoint_a, lcg_pendulum_chain_5_implicit_midpoint_b, lcg_pendulum_chain_5_implicit_midpoint_c, *t, x, p, h, work, work + 240);
-    if (status == LCG_OK) *t += h;
-    return status;
+    double before[10];
+    int i, status;
+    for (i = 0; i < 10; ++i) before[i] = x[i];
+    status = lcg_pendulum_chain_5_irk_step(1, lcg_pendulum_chain_5_implicit_midpoint_a, lcg_pendulum_chain_5_implicit_midpoint_b, lcg_pendulum_chain_5_implicit_midpoint_c, *t, x, p, h, work, work + 240);
+    if (status == LCG_OK && !lcg_pendulum_chain_5_finite(x)) status = LCG_NONFINITE_STATE;
+    if (status != LCG_OK) {
+        for (i = 0; i < 10; ++i) x[i] = before[i];
+        return status;
+    }
+    *t += h;
+    return LCG_OK;
 }
 #endif
 #if LCG_BUILD_PART != 2

@@ -199,6 +199,22 @@ def test_a_step_function_that_fails_leaves_t_and_x_as_they_were(polar, method):
     assert list(x) == [0.125, 0.3, -1.0, 0.0] and t[0] == 2.0
 
 
+@pytest.mark.parametrize("method", ("rk4", "euler", "symplectic_euler"))
+def test_a_step_function_whose_state_overflows_reports_it_and_leaves_t_and_x(polar, method):
+    """Found by review: the exported step returned LCG_OK with an infinite or NaN state (only the
+    drivers checked). From r' = 1e300 one step of h = 1e10 takes r beyond the double range."""
+    ffi, lib = polar.ffi, polar.lib
+    step = getattr(lib, f"{polar.layout.prefix}_step_{method}")
+    start = [1.0, 0.3, 1e300, 0.0]
+    x = ffi.new("double[]", start)
+    t = ffi.new("double *", 2.0)
+    p = ffi.new("double[]", [1.0, 0.0, 1.0, 0.0])  # m, k, l0, g: the free particle
+    work = ffi.new("double[]", 4096)
+    status = step(t, x, p, 1e10, work)
+    assert Status(status) == Status.NONFINITE_STATE
+    assert list(x) == start and t[0] == 2.0
+
+
 @pytest.mark.parametrize("kernel", ("lanes", "scalar"))
 def test_sweeps_judge_a_final_state_on_the_singular_set(polar, kernel):
     """As above in both sweep kernels (Euler): r0 = 1 lands on r = 0 in its last step; r0 = 0.5
