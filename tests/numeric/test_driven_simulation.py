@@ -424,3 +424,21 @@ def test_the_lane_kernel_takes_inputs_held_per_member(tmp_path):
     np.testing.assert_array_equal(lanes.status, scalar.status)
     with pytest.raises(ValueError, match="inputs that vary in time run on the scalar kernel"):
         sweep(system, grid, kernel="lanes", **(common | {"inputs": {"tau1": ([0, 2], [0, 1]), "tau2": 0.0}}))
+
+
+def test_an_input_in_the_potential_energy_compiles_without_the_energy_output(tmp_path):
+    # found by review: the energy kernel E(t, x, p) read r (a C compiler error); E(q, u, r) conserves
+    # nothing to track, so the output is left out and named when asked for. V = k x^2 / 2 - F x from
+    # rest: x = F / k (1 - cos 2t) with k = 4, m = 1 (by hand).
+    from lagcodegen.codegen.outputs import KernelError
+
+    x, F = me.dynamicsymbols("x F")
+    m, k = sp.symbols("m k", positive=True)
+    model = Model("potential_input", [x], [m, k], kinetic_energy=m * x.diff() ** 2 / 2,
+                  potential_energy=k * x ** 2 / 2 - F * x, inputs=[F], parameter_values={"m": 1.0, "k": 4.0})
+    system = compile_model(model, methods=("rk4",), cache_dir=tmp_path)
+    assert not any(name.endswith("_energy") for name in system.layout.functions)
+    run = simulate(system, {"x": 0.0}, t_end=2.0, h=1e-3, inputs=2.0)
+    np.testing.assert_allclose(run["x"], 2.0 / 4.0 * (1 - np.cos(2 * run.t)), atol=1e-11)
+    with pytest.raises(KernelError, match=r"energy of model 'potential_input' holds the input\(s\) F"):
+        compile_model(model, methods=("rk4",), outputs=("rhs", "energy"), cache_dir=tmp_path)
