@@ -8,7 +8,7 @@
 #include <math.h>
 
 #if defined(__FINITE_MATH_ONLY__) && __FINITE_MATH_ONLY__
-#error "-ffinite-math-only (part of -ffast-math) removes the isfinite() checks the status codes rest on: add -fno-finite-math-only"
+#error -ffinite-math-only (part of -ffast-math) removes the isfinite() checks the status codes rest on: add -fno-finite-math-only
 #endif
 
 #include "lcg_stiff_chain_f32.h"
