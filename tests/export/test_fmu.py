@@ -364,8 +364,20 @@ def test_a_state_or_parameter_that_is_not_finite_is_refused_by_value_reference(p
     NaN during initialization likewise. The setter now refuses it and names the value reference."""
     # states may be set only while initializing
     ref, messages = refused_set_messages(pendulum_fmu, fmi_version, name, value, initializing=name.startswith("q"))
-    assert any(f"value reference {ref} (a state or parameter) cannot be set to" in m and "not finite" in m
-               for m in messages), messages
+    assert any(f"value reference {ref} (a state, parameter, input or the step size) cannot be set to" in m
+               and "not finite" in m for m in messages), messages
+
+
+@pytest.mark.parametrize("name, value, reason", [
+    # found by review: a NaN input was taken and reported later as a diverged state, naming no input
+    ("F", float("nan"), "(a state, parameter, input or the step size) cannot be set to nan: not finite"),
+    ("F", float("inf"), "(a state, parameter, input or the step size) cannot be set to inf: not finite"),
+    ("step_size", 0.0, "(the step size) cannot be set to 0: not positive"),
+])
+def test_an_input_or_step_that_is_not_finite_is_refused_by_value_reference(oscillator_fmu, fmi_version, name,
+                                                                           value, reason):
+    ref, messages = refused_set_messages(oscillator_fmu, fmi_version, name, value, initializing=True)
+    assert any(f"value reference {ref} {reason}" in m for m in messages), messages
 
 
 def test_a_state_set_after_initialization_is_refused_as_not_settable(pendulum_fmu, fmi_version):
@@ -373,3 +385,35 @@ def test_a_state_set_after_initialization_is_refused_as_not_settable(pendulum_fm
     Co-Simulation FMU are set only while initializing)."""
     _, messages = refused_set_messages(pendulum_fmu, fmi_version, "q1", 0.5, initializing=False)
     assert any("not settable in this mode" in m for m in messages), messages
+
+
+@pytest.mark.parametrize("start, point, size, reason", [
+    # found by review: a NaN start time or communication point was taken (doSteps returned OK and took
+    # no step, or the FMU's time became NaN); an infinite step size never returned
+    (float("nan"), None, None, "the start time is not finite"),
+    (0.0, float("nan"), H, "the communication point is not the FMU's time"),
+    (0.0, 0.0, float("inf"), "the step size is not a finite non-negative number"),
+    (0.0, 0.0, float("nan"), "the step size is not a finite non-negative number"),
+    (0.0, 0.0, -H, "the step size is not a finite non-negative number"),
+])
+def test_a_time_or_step_that_is_not_finite_is_refused(pendulum_fmu, fmi_version, start, point, size, reason):
+    from fmpy import extract
+    from fmpy.simulation import instantiate_fmu
+
+    description = read_model_description(str(pendulum_fmu))
+    messages = []
+
+    def logger(*args):  # a logger of our own (see test_a_failed_step_leaves_the_last_accepted_state)
+        messages.append(repr(args))
+
+    fmu = instantiate_fmu(extract(str(pendulum_fmu)), description, fmi_type="CoSimulation", logger=logger)
+    with pytest.raises(Exception, match="SetupExperiment|EnterInitializationMode|DoStep"):
+        if fmi_version == "2.0":
+            fmu.setupExperiment(startTime=start)
+            fmu.enterInitializationMode()
+        else:
+            fmu.enterInitializationMode(startTime=start)
+        fmu.exitInitializationMode()
+        fmu.doStep(currentCommunicationPoint=point, communicationStepSize=size)
+    fmu.freeInstance()
+    assert any(reason in m for m in messages), messages
