@@ -417,3 +417,39 @@ def test_a_time_or_step_that_is_not_finite_is_refused(pendulum_fmu, fmi_version,
         fmu.doStep(currentCommunicationPoint=point, communicationStepSize=size)
     fmu.freeInstance()
     assert any(reason in m for m in messages), messages
+
+
+@pytest.fixture(scope="module")
+def four_bar_system():
+    from lagcodegen import catalog
+
+    return compile_model(catalog.four_bar(), methods=("rk4",))
+
+
+def closure_gap(result) -> float:
+    """max | |B - O4| - l3 | of the catalog four-bar (O4 = (0.4, 0), l3 = 0.3): its loop closure, by hand."""
+    return float(np.abs(np.hypot(result["B.x"] - 0.4, result["B.y"]) - 0.3).max())
+
+
+@pytest.mark.parametrize("start, step, stop, warned", [
+    # found by review: the FMU ran a constrained model off its constraints with OK and no word, where
+    # simulate warns (ConstraintDriftWarning); now fmi2Warning/fmi3Warning with the offset, once
+    ("off", 1e-4, 0.01, "ExitInitializationMode"),
+    ("on", 1e-3, 1.0, "DoStep"),  # RK4 at h = 1e-3 drifts (simulate warns too)
+    ("on", 1e-4, 0.01, None),
+])
+def test_a_constrained_fmu_warns_once_when_its_state_is_off_the_constraints(four_bar_system, fmi_version, tmp_path,
+                                                                           start, step, stop, warned):
+    from lagcodegen import catalog
+
+    x0 = {"theta1": 0.3, "theta2": 0.0, "theta3": 0.0} if start == "off" else catalog.four_bar_state(0.3, 1.0)
+    fmu = export_fmu(four_bar_system, tmp_path / "four_bar.fmu", x0=x0, step=step, fmi_version=fmi_version)
+    messages = []
+    result = simulate_fmu(str(fmu), stop_time=stop, output_interval=stop / 10, output=["B.x", "B.y"],
+                          logger=lambda *args: messages.append(repr(args)))
+    warnings = [m for m in messages if "is off constraint" in m]
+    if warned is None:
+        assert not warnings and closure_gap(result) < 1e-6
+    else:
+        assert len(warnings) == 1 and warned in warnings[0], messages
+        assert closure_gap(result) > 1e-6

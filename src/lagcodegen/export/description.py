@@ -30,6 +30,8 @@ def model_description(table: VariableTable, *, model_name: str, identifier: str,
             ET.SubElement(files, "File", {"name": name})
     categories = ET.SubElement(root, "LogCategories")
     ET.SubElement(categories, "Category", {"name": "logStatusError", "description": "errors: what failed and why"})
+    ET.SubElement(categories, "Category", {"name": "logStatusWarning",
+                                           "description": "warnings: a state off the model's constraints"})
     ET.SubElement(root, "DefaultExperiment", {"startTime": "0.0", "stepSize": repr(float(step))})
     variables = ET.SubElement(root, "ModelVariables")
     for v in table.variables:
@@ -67,6 +69,8 @@ def model_description_fmi3(table: VariableTable, *, model_name: str, identifier:
                                          "canHandleVariableCommunicationStepSize": "true"})
     categories = ET.SubElement(root, "LogCategories")
     ET.SubElement(categories, "Category", {"name": "logStatusError", "description": "errors: what failed and why"})
+    ET.SubElement(categories, "Category", {"name": "logStatusWarning",
+                                           "description": "warnings: a state off the model's constraints"})
     ET.SubElement(root, "DefaultExperiment", {"startTime": "0.0", "stepSize": repr(float(step))})
     variables = ET.SubElement(root, "ModelVariables")
     by_vr = {v.index: v.value_reference for v in table.variables}

@@ -249,6 +249,7 @@ def _wrapper_source(sources: CSources, table, guid: str, method: str, step: floa
         "method_macro": f"{layout.prefix.upper()}_METHOD_{method.upper()}",
         "has_energy": bool(table.of_kind("energy")), "has_points": bool(layout.points),
         "has_measurements": bool(layout.measurements),
+        "n_constraints": layout.n_constraints if f"{layout.prefix}_residuals" in layout.functions else 0,
         "status_codes": [{"value": row.code, "doc": row.message} for row in STATUS_TABLE],
         "other_types": FMI3_OTHER_TYPES, "derivative_functions": FMI3_DERIVATIVE_FUNCTIONS,
         "configuration_functions": FMI3_CONFIGURATION_FUNCTIONS,
