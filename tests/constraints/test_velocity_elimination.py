@@ -177,6 +177,13 @@ def test_the_eliminated_disc_keeps_three_speeds(discs):
     assert layout.n_state == 8 and discs["multipliers"].layout.n_state == 10
 
 
+def test_only_the_multipliers_take_baumgarte_parameters(discs):
+    # found by review: an FMU of an eliminated model offered baumgarte_alpha and _beta, which did nothing
+    # (the dependent speeds are solved from the constraints, so w = A u + b = 0 at every evaluation)
+    assert not any(name.startswith("baumgarte") for name in discs["elimination"].layout.parameters)
+    assert {"baumgarte_alpha", "baumgarte_beta"} <= set(discs["multipliers"].layout.parameters)
+
+
 def test_upright_rolling_wobbles_at_sympys_frequency(discs):
     """As test_rolling_disc's multipliers test: the lean oscillates at sympy's w_lean (A_sol) at 1.5 times
     the critical spin; here without projection, the rolling held by construction."""

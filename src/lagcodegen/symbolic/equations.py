@@ -30,6 +30,13 @@ ROUTE_TITLES = {
 }
 
 
+def without_baumgarte(expr):
+    """``expr`` with Baumgarte's terms dropped, for dependent speeds eliminated: they are solved from the
+    velocity constraints at every evaluation, so w = A u + b is zero there and -2 alpha w vanishes
+    (and there is no phi for -beta^2 phi)."""
+    return expr.xreplace({BAUMGARTE_ALPHA: 0, BAUMGARTE_BETA: 0})
+
+
 @dataclass(frozen=True)
 class EquationsOfMotion:
     """``qd = K(q, u, t)``, ``M(q, t) ud = F(q, u, t)``, in plain symbols.
@@ -357,14 +364,16 @@ def assemble(model, coords, speeds, q, u, M, F, K, T, V, to_plain, inputs_checke
         constrained = {"constraints": stack("phi"), "constraint_jacobian": stack("A"),
                        "constraint_rate": stack("phi_t"), "constraint_bias": stack("gamma"),
                        "n_holonomic": phi.rows}
-        parameters += (BAUMGARTE_ALPHA, BAUMGARTE_BETA)
-        values.update({BAUMGARTE_ALPHA: 0.0, BAUMGARTE_BETA: 0.0})
         kinds = " and ".join(k for k, rows in (("holonomic", phi.rows), ("velocity", w.rows)) if rows)
         route += f" with {kinds} constraints (Lagrange I)"
         if eliminated:
             _check_dependent_block(model, constrained["constraint_jacobian"], u, w.rows)
             constrained["n_dependent"] = w.rows
+            constrained["constraint_bias"] = without_baumgarte(constrained["constraint_bias"])
             route = route.replace("(Lagrange I)", f"(dependent speeds {', '.join(map(str, u[-w.rows:]))} eliminated)")
+        else:
+            parameters += (BAUMGARTE_ALPHA, BAUMGARTE_BETA)
+            values.update({BAUMGARTE_ALPHA: 0.0, BAUMGARTE_BETA: 0.0})
     return EquationsOfMotion(
         name=model.name, route=route, t=TIME, coordinates=tuple(coords), speeds=tuple(speeds),
         q=tuple(q), u=tuple(u), parameters=parameters, parameter_values=values,

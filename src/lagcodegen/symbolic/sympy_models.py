@@ -18,7 +18,8 @@ import sympy as sp
 import sympy.physics.mechanics as me
 
 from ..model import TIME, Model, ModelError, check_well_defined
-from .equations import assemble, check_mass_matrix, input_symbols, make_substitution, plain_symbols
+from .equations import assemble, check_mass_matrix, input_symbols, make_substitution, plain_symbols, without_baumgarte
+from .holonomic import BAUMGARTE_ALPHA, BAUMGARTE_BETA
 from .kane_terms import dyadic_frames, kane_terms
 
 
@@ -177,8 +178,12 @@ def _with_formulation(eom, model: Model, n_dependent: int):
         obstacle = "it has no dependent speeds (KanesMethod u_dependent=) for its velocity constraints"
     elif held:
         obstacle = f"its velocity constraints read the input(s) {', '.join(held)}"
-    if obstacle is None:
-        return replace(eom, n_dependent=n_dependent,
+    if obstacle is None:  # no Baumgarte terms (see without_baumgarte): M + A^T A regularized F holds gamma too
+        baumgarte = {BAUMGARTE_ALPHA, BAUMGARTE_BETA}
+        return replace(eom, n_dependent=n_dependent, forcing=without_baumgarte(eom.forcing),
+                       constraint_bias=without_baumgarte(eom.constraint_bias),
+                       parameters=tuple(p for p in eom.parameters if p not in baumgarte),
+                       parameter_values={p: v for p, v in eom.parameter_values.items() if p not in baumgarte},
                        route=eom.route.replace("(Lagrange I)", "(dependent speeds eliminated, Kane)"))
     if model.formulation == "elimination":
         raise ModelError(f"model {model.name!r}: formulation 'elimination' is not possible: {obstacle}; "
