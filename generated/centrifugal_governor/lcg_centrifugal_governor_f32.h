@@ -95,13 +95,13 @@ int lcg_centrifugal_governor_f32_step_symplectic_euler(float *t, float *x, const
 /* One step of implicit midpoint, Gauss s=1 (order 2); work holds 17 values, the last 1 receive the pivots (gauge) of the state x it started from. */
 int lcg_centrifugal_governor_f32_step_implicit_midpoint(float *t, float *x, const float *p, float h, float *work);
 
-/* Fixed-step integration loop; returns a status code. */
+/* Fixed-step integration loop from (t0, x0), n_steps steps of size h, keeping every stride-th state: n_steps / stride + 1 samples of t_out (1), x_out (2), energy_out (1), points_out (9), residuals_out and multipliers_out (none: no constraints with multipliers) each, any of the last four NULL to skip (written only where the kernel has them); work: LCG_CENTRIFUGAL_GOVERNOR_F32_WORK_SIZE values; returns a status code (*steps_done: the steps completed). */
 int lcg_centrifugal_governor_f32_simulate(int method, float t0, const float *x0, const float *p, float h, long n_steps, long stride, int project, float *t_out, float *x_out, float *energy_out, float *points_out, float *residuals_out, float *multipliers_out, float *work, long *steps_done);
 
 /* One step of the method numbered `method` under the singularity monitor of lcg_centrifugal_governor_f32_simulate, for a caller's own loop (work: LCG_CENTRIFUGAL_GOVERNOR_F32_WORK_SIZE values, kept between calls; first: 1 after the state or parameters were set; a failed step leaves x as it was; judge_only: judge x, the last state reached, and leave it as it is); returns a status code. */
 int lcg_centrifugal_governor_f32_step_monitored(int method, float t, float *x, const float *p, float h, float *work, int first, int judge_only);
 
-/* Many independent members, one after another. */
+/* Many independent members, one after another: member m from x0s + m * 2 with ps + m * 5, its results at x_final + m * 2, q_max + m * 1, energy_error[m], status[m], steps_done[m] and (traj not NULL) traj + m * (n_steps / stride + 1) * 2; work: LCG_CENTRIFUGAL_GOVERNOR_F32_WORK_SIZE values. */
 void lcg_centrifugal_governor_f32_sweep(int method, long n_members, const float *x0s, const float *ps, float t0, float h, long n_steps, long stride, int project, int track_energy, float *x_final, float *q_max, float *energy_error, int *status, long *steps_done, float *traj, float *work);
 
 #endif /* LCG_CENTRIFUGAL_GOVERNOR_F32_H */

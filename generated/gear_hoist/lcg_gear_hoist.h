@@ -93,13 +93,13 @@ int lcg_gear_hoist_step_symplectic_euler(double *t, double *x, const double *p, 
 /* One step of implicit midpoint, Gauss s=1 (order 2); work holds 17 values, the last 1 receive the pivots (gauge) of the state x it started from. */
 int lcg_gear_hoist_step_implicit_midpoint(double *t, double *x, const double *p, double h, double *work);
 
-/* Fixed-step integration loop; returns a status code. */
+/* Fixed-step integration loop from (t0, x0), n_steps steps of size h, keeping every stride-th state: n_steps / stride + 1 samples of t_out (1), x_out (2), energy_out (1), points_out (0), residuals_out and multipliers_out (none: no constraints with multipliers) each, any of the last four NULL to skip (written only where the kernel has them); work: LCG_GEAR_HOIST_WORK_SIZE values; returns a status code (*steps_done: the steps completed). */
 int lcg_gear_hoist_simulate(int method, double t0, const double *x0, const double *p, double h, long n_steps, long stride, int project, double *t_out, double *x_out, double *energy_out, double *points_out, double *residuals_out, double *multipliers_out, double *work, long *steps_done);
 
 /* One step of the method numbered `method` under the singularity monitor of lcg_gear_hoist_simulate, for a caller's own loop (work: LCG_GEAR_HOIST_WORK_SIZE values, kept between calls; first: 1 after the state or parameters were set; a failed step leaves x as it was; judge_only: judge x, the last state reached, and leave it as it is); returns a status code. */
 int lcg_gear_hoist_step_monitored(int method, double t, double *x, const double *p, double h, double *work, int first, int judge_only);
 
-/* Many independent members, one after another. */
+/* Many independent members, one after another: member m from x0s + m * 2 with ps + m * 10, its results at x_final + m * 2, q_max + m * 1, energy_error[m], status[m], steps_done[m] and (traj not NULL) traj + m * (n_steps / stride + 1) * 2; work: LCG_GEAR_HOIST_WORK_SIZE values. */
 void lcg_gear_hoist_sweep(int method, long n_members, const double *x0s, const double *ps, double t0, double h, long n_steps, long stride, int project, int track_energy, double *x_final, double *q_max, double *energy_error, int *status, long *steps_done, double *traj, double *work);
 
 #endif /* LCG_GEAR_HOIST_H */

@@ -130,7 +130,17 @@ def stepper_context(system, names, real: str, methods: list) -> dict:
                      f"int method, {real} t0, const {real} *x0, const {real} *p, {real} h, "
                      f"long n_steps, long stride, int project, {driven}{real} *t_out, {real} *x_out, "
                      f"{real} *energy_out, {real} *points_out, {real} *residuals_out, {real} *multipliers_out, "
-                     f"{real} *work, long *steps_done", "Fixed-step integration loop; returns a status code.", [])
+                     f"{real} *work, long *steps_done",
+                     "Fixed-step integration loop from (t0, x0), n_steps steps of size h, keeping every "
+                     f"stride-th state: n_steps / stride + 1 samples of t_out (1), x_out ({N}), energy_out (1), "
+                     f"points_out ({3 * points}), "
+                     + (f"residuals_out ({2 * system.n_constraints}: phi, then A u + dphi/dt) and multipliers_out "
+                        f"({system.n_constraints + n}: lam, then Q = A^T lam) each, any of the last four"
+                        if system.n_constraints else "residuals_out and multipliers_out (none: no constraints "
+                        "with multipliers) each, any of the last four")
+                     + " NULL to skip (written only where the kernel has them); work: "
+                     f"{prefix.upper()}_WORK_SIZE values; returns a status code (*steps_done: the steps "
+                     "completed).", [])
     context["exported"] += foh
     context |= _step_jacobian_context(system, context, prefix, real, methods)
     if system.inputs:
@@ -162,7 +172,10 @@ def stepper_context(system, names, real: str, methods: list) -> dict:
                     f"int method, long n_members, const {real} *x0s, const {real} *ps, {tables}{real} t0, "
                     f"{real} h, long n_steps, long stride, int project, int track_energy, {summaries}{real} *x_final, "
                     f"{real} *q_max, {real} *energy_error, int *status, long *steps_done, {real} *traj, {real} *work",
-                    "Many independent members, one after another.", [])
+                    "Many independent members, one after another: member m from x0s + m * "
+                    f"{N} with ps + m * {max(1, len(system.free_parameters))}, its results at x_final + m * {N}, "
+                    f"q_max + m * {len(system.q)}, energy_error[m], status[m], steps_done[m] and (traj not NULL) "
+                    f"traj + m * (n_steps / stride + 1) * {N}; work: {prefix.upper()}_WORK_SIZE values.", [])
     context["sweep_decl"] = sweep["decl"]
     context["n_params_or_one"] = max(1, len(system.free_parameters))
     context["can_project"] = "constraints" in system.outputs or "configuration" in system.outputs
