@@ -333,3 +333,26 @@ def test_print_measured_limits(measured_limits):
         lines.append(f"{method:<18} {theory:>9.4f} {measured:>9.4f}  {note}")
     print("\n".join(lines))
     assert set(measured_limits) == set(MEASURED_METHODS)
+
+
+@pytest.mark.parametrize("K", [1e7, 1e8, 1e9])
+def test_implicit_methods_hold_a_very_stiff_spring(tmp_path_factory, K):
+    """Found by review: on two unit masses, a soft spring (k = 1) to the wall and a stiff one (K)
+    between them, from x = (1, 1) at rest, sdirk2 and radau_iia3 stopped with NEWTON_FAILED from
+    K = 1e7 and the implicit midpoint rule from 1e8: the Newton increments stalled at the rounding of
+    the stiff force, eps K h |x| (2e-12 at 1e7), above the 1e-13 tolerance. Started together, the
+    masses move as one of mass 2 on k = 1: x1 = x2 = cos(t / sqrt 2) (by hand)."""
+    x1, x2 = me.dynamicsymbols("x1 x2")
+    m, k, stiff = sp.symbols("m k K", positive=True)
+    model = Model("stiff_pair", [x1, x2], [m, k, stiff],
+                  kinetic_energy=m / 2 * (x1.diff() ** 2 + x2.diff() ** 2),
+                  potential_energy=k / 2 * x1 ** 2 + stiff / 2 * (x2 - x1) ** 2,
+                  parameter_values={m: 1.0, k: 1.0, stiff: 1e8})
+    methods = {"backward_euler": 1e-3, "implicit_midpoint": 1e-7, "sdirk2": 1e-6, "radau_iia3": 1e-7}
+    system = compile_model(model, methods=tuple(methods), cache_dir=tmp_path_factory.mktemp("stiff_pair"))
+    for method, tolerance in methods.items():
+        run = simulate(system, [1.0, 1.0, 0.0, 0.0], t_end=1.0, h=1e-3, method=method, params={"K": K},
+                       check_stability=False)
+        assert run.status == Status.OK, (method, run.message)
+        exact = np.cos(run.t / math.sqrt(2.0))
+        assert np.abs(run["x1"] - exact).max() < tolerance and np.abs(run["x2"] - exact).max() < tolerance, method

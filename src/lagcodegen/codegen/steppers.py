@@ -12,6 +12,10 @@ from .csyntax import record as _record
 
 #: simplified-Newton stopping rule of the implicit steppers: max |dW| / (1 + |x|) per precision
 NEWTON_TOLERANCE = {"double": 1e-13, "float": 1e-5}
+#: a Newton increment that no longer shrinks (ratio >= NEWTON_STALL to the previous one) and is below
+#: NEWTON_FLOOR has reached the rounding of f: accepted (a stiff spring's stays above the tolerance)
+NEWTON_STALL = 0.9
+NEWTON_FLOOR = {"double": 1e-9, "float": 1e-4}
 NEWTON_MAX_ITERATIONS = 30
 
 #: The drivers' singularity monitor (``<prefix>_gauge_check`` in templates/steppers.c.j2) reads the
@@ -52,6 +56,7 @@ def stepper_context(system, names, real: str, methods: list) -> dict:
                "identity_kinematics": system.kinematics_identity, "zero": _literal(0, real),
                "one": _literal(1, real), "fsuffix": "f" if real == "float" else "",
                "newton_tolerance": _literal(NEWTON_TOLERANCE[real], real), "newton_max": NEWTON_MAX_ITERATIONS,
+               "newton_stall": _literal(NEWTON_STALL, real), "newton_floor": _literal(NEWTON_FLOOR[real], real),
                "n_state_squared": N * N, "n_squared": n * n, "se_work": 3 * n * n + 5 * n + N,
                "has_energy": "energy" in system.outputs, "has_points": points > 0,
                "n_point_values": 3 * points, "work_size": N, "method_rows": [], "gauge_size": G,
