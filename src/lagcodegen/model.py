@@ -258,6 +258,9 @@ class Model:
                     f"coordinate {q!r} is not a function of time; declare it with "
                     f"sympy.physics.mechanics.dynamicsymbols('{q}')")
             qname = q.func.__name__
+            if qname == TIME.name:
+                raise ModelError(f"coordinate {qname!r} has the name of the time symbol; give the coordinate another "
+                                 "name")
             if qname in names:
                 raise ModelError(f"coordinate {qname!r} is listed twice")
             if qname in parameter_names:
@@ -265,7 +268,7 @@ class Model:
             names.add(qname)
 
     def _check_inputs(self) -> None:
-        taken = {p.name: "parameter" for p in self.parameters}
+        taken = {p.name: "parameter" for p in self.parameters} | {TIME.name: "time symbol"}
         taken |= {c.func.__name__: "coordinate" for c in self.coordinates}
         seen = set()
         for r in self.inputs:

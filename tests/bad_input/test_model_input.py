@@ -235,3 +235,16 @@ def test_a_joints_method_with_a_loose_joint_is_named():
         method = me.JointsMethod(ground, carried, loose)
     with raises_naming("joint 'j2'", "body 'b'", "Newtonian body ground"):
         Model("loose", parameters=[m, length], sympy_model=method)
+
+
+def test_a_coordinate_or_input_named_like_time_is_refused():
+    # found by review: a coordinate t(t) became the plain symbol t, the time: derive_equations returned a
+    # forcing mixing the two without a word, and the C compiler failed on "redeclaration of t"
+    t_coordinate, F = me.dynamicsymbols("t F")
+    m, k = sp.symbols("m k")
+    with pytest.raises(ModelError, match="coordinate 't' has the name of the time symbol"):
+        Model("time_clash", [t_coordinate], [m, k], kinetic_energy=m * t_coordinate.diff() ** 2 / 2)
+    x, t_input = me.dynamicsymbols("x t")
+    with pytest.raises(ModelError, match="input 't' is also a time symbol"):
+        Model("time_input", [x], [m, k], kinetic_energy=m * x.diff() ** 2 / 2, generalized_forces={x: t_input},
+              inputs=[t_input])

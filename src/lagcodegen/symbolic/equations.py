@@ -199,10 +199,11 @@ def plain_symbols(coordinates, speeds, parameters) -> tuple[tuple, tuple]:
     q = tuple(sp.Symbol(c.func.__name__) for c in coordinates)
     u = tuple(sp.Symbol(s.func.__name__ if isinstance(s, AppliedUndef) else s.expr.func.__name__ + "_d")
               for s in speeds)
-    taken = {p.name: "parameter" for p in parameters}
+    taken = {p.name: "parameter" for p in parameters} | {TIME.name: "the time symbol"}
     for sym in q + u:
         if sym.name in taken:
-            raise ModelError(f"name {sym.name!r} is used by a {taken[sym.name]} and by a coordinate or speed")
+            owner = taken[sym.name] if sym.name == TIME.name else f"a {taken[sym.name]}"
+            raise ModelError(f"name {sym.name!r} is used by {owner} and by a coordinate or speed; rename it")
         taken[sym.name] = "coordinate or speed"
     return q, u
 
