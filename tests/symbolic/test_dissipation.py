@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 import sympy as sp
 import sympy.physics.mechanics as me
 
@@ -89,3 +90,22 @@ def test_bodies_route_adds_the_rayleigh_term_too():
     eom = derive_equations(model)
     (q,), (u,) = eom.q, eom.u
     assert sp.simplify(eom.forcing[0] - (-c * u - k * q)) == 0
+
+
+def test_abs_of_a_coordinate_or_speed_differentiates_as_real(tmp_path):
+    # found by review: the plain symbols were not real, so d|x|/dx came out in re() and im() terms,
+    # which the C printer refused naming a CSE temporary. V = k |x|^3 / 3 and R = c |x'|^3 / 3 give
+    # the forces -k x |x| and -c x' |x'| (by hand).
+    x = me.dynamicsymbols("x")
+    m, k, c = sp.symbols("m k c", positive=True)
+    model = Model("cubic", [x], [m, k, c], kinetic_energy=m * x.diff() ** 2 / 2,
+                  potential_energy=k * sp.Abs(x) ** 3 / 3, dissipation=c * sp.Abs(x.diff()) ** 3 / 3,
+                  parameter_values={m: 1.0, k: 2.0, c: 0.1})
+    eom = derive_equations(model)
+    q, u = eom.q[0], eom.u[0]
+    assert not eom.forcing.has(sp.re, sp.im)
+    for value, rate in [(0.7, -1.3), (-0.4, 2.0)]:
+        at = {q: value, u: rate, k: 2.0, c: 0.1}
+        by_hand = -2.0 * value * abs(value) - 0.1 * rate * abs(rate)
+        assert float(eom.forcing[0].xreplace(at)) == pytest.approx(by_hand, rel=1e-14)
+    compile_model(model, methods=("rk4",), outputs=("rhs",), cache_dir=tmp_path)

@@ -196,8 +196,8 @@ class EquationsOfMotion:
 # -- symbols ----------------------------------------------------------------------------------
 def plain_symbols(coordinates, speeds, parameters) -> tuple[tuple, tuple]:
     """Plain Symbols for q_i(t) (same name) and their speeds (name + '_d', or Kane's u name)."""
-    q = tuple(sp.Symbol(c.func.__name__) for c in coordinates)
-    u = tuple(sp.Symbol(s.func.__name__ if isinstance(s, AppliedUndef) else s.expr.func.__name__ + "_d")
+    q = tuple(sp.Symbol(c.func.__name__, real=True) for c in coordinates)
+    u = tuple(sp.Symbol(s.func.__name__ if isinstance(s, AppliedUndef) else s.expr.func.__name__ + "_d", real=True)
               for s in speeds)
     taken = {p.name: "parameter" for p in parameters} | {TIME.name: "the time symbol"}
     for sym in q + u:
