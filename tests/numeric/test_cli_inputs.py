@@ -58,13 +58,16 @@ def test_a_csv_table_on_a_first_order_hold(model_file, tmp_path, capsys):
     assert final_x(capsys.readouterr().out) == pytest.approx(step_response(2.0, 1.0), abs=1e-8)
 
 
+def saved(argv, tmp_path):
+    """Run ``lagcodegen argv --out <tmp>.npz``; assert exit 0 and return the .npz it wrote."""
+    out = tmp_path / "saved.npz"
+    assert main([*map(str, argv), "--out", str(out)]) == 0
+    return np.load(out)
+
+
 def test_the_saved_run_keeps_the_inputs(model_file, tmp_path, capsys):
     # found by review: --out dropped the inputs (and measurements, residuals, multipliers)
-    out = tmp_path / "run.npz"
-    code = main(["simulate", str(model_file), "--t-end", "1", "--h", "1e-3", "--x0", "x=0", "--input", "F=1.5",
-                 "--out", str(out)])
-    assert code == 0
-    data = np.load(out)
+    data = saved(["simulate", model_file, "--t-end", "1", "--h", "1e-3", "--x0", "x=0", "--input", "F=1.5"], tmp_path)
     assert data["input_names"].tolist() == ["F"] and str(data["hold"]) == "zoh"
     np.testing.assert_array_equal(data["inputs"], np.full((1001, 1), 1.5))
     np.testing.assert_allclose(data["x"][:, 0], step_response(data["t"], 1.5), atol=1e-10)
@@ -73,11 +76,7 @@ def test_the_saved_run_keeps_the_inputs(model_file, tmp_path, capsys):
 
 
 def test_a_sweep_over_the_input(model_file, tmp_path, capsys):
-    out = tmp_path / "sweep.npz"
-    code = main(["sweep", str(model_file), "--t-end", "2", "--h", "1e-3", "--x0", "x=0", "--grid", "F=0.5,2",
-                 "--out", str(out)])
-    assert code == 0
-    data = np.load(out)
+    data = saved(["sweep", model_file, "--t-end", "2", "--h", "1e-3", "--x0", "x=0", "--grid", "F=0.5,2"], tmp_path)
     np.testing.assert_allclose(data["x_final"][:, 0], step_response(2.0, np.array([0.5, 2.0])), atol=1e-8)
 
 

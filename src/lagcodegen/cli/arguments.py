@@ -188,7 +188,7 @@ def parse_axis(item: str) -> tuple:
     if not sep or not name or not spec.strip():
         raise UsageError(f"--grid {item!r} must look like name=start:stop:count[:log] or name=v1,v2,...")
     if ":" not in spec:
-        values = [v for v in spec.split(",")]
+        values = spec.split(",")
         if not any(v.strip() for v in values):
             return name, np.array([], dtype=float)  # "has no values" (parse_grid)
         if any(not v.strip() for v in values):
