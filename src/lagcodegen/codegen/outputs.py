@@ -764,7 +764,7 @@ def _dense_solve_function(w: KernelWriter) -> dict:
                   f"{real} *det",
                   "Solve A X = B in place (LU, partial pivoting); 0 when A is singular to rank_tolerance "
                   "relative to the larger of scale and A's largest |entry|; det (or NULL) receives det(A).",
-                  body, static=True)
+                  body, hot=True)
 
 
 def _eliminated_solve_function(w: KernelWriter) -> dict:
@@ -928,7 +928,7 @@ def _inline_dependent_lines(w: KernelWriter, kernel) -> list:
     A_D u_dep = -(A_I u_I + b) from the kernel's own A and BI results (the same system and rank
     test as ``<prefix>_dependent_speeds``, without evaluating A twice)."""
     m, p, real, prefix = w.n_dependent, w.n_u, w.real, w.prefix
-    fabs, fmax = ("fabsf", "fmaxf") if real == "float" else ("fabs", "fmax")
+    fabs = "fabsf" if real == "float" else "fabs"
     A = results(kernel, "A")
     lines = [f"{real} u_dep[{m}], AD_dep[{m * m}], scale_dep = {literal(0, real)};",
              "/* the dependent speeds from A_D u_dep = -(A_I u_I + b); the rank test's scale is the largest",
@@ -940,7 +940,8 @@ def _inline_dependent_lines(w: KernelWriter, kernel) -> list:
         for k in range(p):
             entry = A.get((i, k), 0)
             if entry != 0:
-                lines.append(f"scale_dep = {fmax}(scale_dep, {fabs}({w.expr(entry, f'A[{i}][{k}]')}));")
+                value = w.expr(entry, f'A[{i}][{k}]')  # a comparison, not fmax: gcc calls libm's fmax
+                lines.append(f"if ({fabs}({value}) > scale_dep) scale_dep = {fabs}({value});")
     lines.append(f"if (!{prefix}_dense_solve(AD_dep, u_dep, {m}, 1, scale_dep, 0)) return LCG_SINGULAR_CONSTRAINTS;")
     return lines
 

@@ -216,9 +216,70 @@ def _tree_kernel(eom: EquationsOfMotion, name: str, folding: dict) -> ReducedKer
 def _reduce(name: str, labels: list, exprs: list) -> ReducedKernel:
     before = count_operations(exprs)
     replacements, reduced = sp.cse(exprs, symbols=sp.numbered_symbols("tmp"), order="canonical")
+    memo: dict = {}
+    replacements = [(symbol, factor_sums(expr, memo)) for symbol, expr in replacements]
+    reduced = [factor_sums(expr, memo) for expr in reduced]
+    replacements = _used(replacements, reduced)
     after = count_operations([v for _, v in replacements] + list(reduced))
     return ReducedKernel(name=name, temporaries=tuple(replacements),
                          results=tuple(zip(labels, reduced)), ops_before=before, ops_after=after)
+
+
+def _used(replacements: list, results: list) -> list:
+    """The temporaries the results read, directly or through others (factoring can cancel terms:
+    a*(x - y) + a*(y + z) -> a*(x + z) no longer reads y)."""
+    needed = set()
+    for expr in results:
+        needed |= expr.free_symbols
+    kept = []
+    for symbol, expr in reversed(replacements):
+        if symbol in needed:
+            kept.append((symbol, expr))
+            needed |= expr.free_symbols
+    return kept[::-1]
+
+
+def factor_sums(expr, memo: dict):
+    """``expr`` with the factors its sums' terms share pulled out, greedily: in every sum, the
+    factor most terms hold (ties: sympy's sort order) is taken out of those terms, and the inner
+    and the remaining sums are factored the same way; a*x + a*y + b*x -> a*(x + y) + b*x. CSE
+    leaves such sums (it shares subexpressions, not factors): the Whipple bicycle's dynamics
+    kernel took 1525 operations after CSE, 1448 after this."""
+    known = memo.get(expr)
+    if known is not None:
+        return known
+    if expr.is_Atom or not expr.args:
+        result = expr
+    else:
+        args = [factor_sums(a, memo) for a in expr.args]
+        result = expr.func(*args) if any(a is not b for a, b in zip(args, expr.args)) else expr
+        if result.is_Add:
+            result = _factor_terms(list(result.args))
+    memo[expr] = result
+    return result
+
+
+def _factor_terms(terms: list):
+    products = []
+    while len(terms) > 1:  # a loop, not recursion, over the factors taken out: sums can be long
+        counts: dict = {}
+        for term in terms:
+            for factor in _factors(term):
+                counts[factor] = counts.get(factor, 0) + 1
+        most = max(counts.values(), default=0)
+        if most < 2:
+            break
+        factor = min((f for f, c in counts.items() if c == most), key=sp.default_sort_key)
+        inside = [term / factor for term in terms if factor in _factors(term)]
+        terms = [term for term in terms if factor not in _factors(term)]
+        products.append(sp.Mul(factor, _factor_terms(inside)))
+    return sp.Add(*products, *terms)
+
+
+def _factors(term) -> set:
+    """The symbolic factors of a sum's term (numbers are not factored out: sympy distributes them)."""
+    args = term.args if term.is_Mul else (term,)
+    return {a for a in args if not a.is_Number}
 
 
 def count_operations(exprs) -> int:
