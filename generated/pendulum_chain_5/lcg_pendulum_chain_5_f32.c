@@ -1457,8 +1457,10 @@ int lcg_pendulum_chain_5_f32_simulate(int method, float t0, const float *x0, con
     float *scratch = history + 2 * 5;
     long k, sample = 1, until_sample;
     int i, status = LCG_OK;
-    for (i = 0; i < 10; ++i) x[i] = x0[i];
     *steps_done = 0;
+    /* before anything is written: the caller sized the outputs by n_steps */
+    if (n_steps < 0 || !isfinite(h)) return LCG_BAD_ARGUMENT;
+    for (i = 0; i < 10; ++i) x[i] = x0[i];
     if (!lcg_pendulum_chain_5_f32_finite(x)) return LCG_NONFINITE_STATE;
     if (stride < 1) stride = 1;
     until_sample = stride;  /* a countdown, not k % stride: no division per step */
@@ -1495,6 +1497,13 @@ void lcg_pendulum_chain_5_f32_sweep(int method, long n_members, const float *x0s
     const long n_out = n_steps / (stride < 1 ? 1 : stride) + 1;
     long member;
     if (stride < 1) stride = 1;
+    if (n_steps < 0 || !isfinite(h)) {  /* before anything is written: the caller sized traj by n_steps */
+        for (member = 0; member < n_members; ++member) {
+            status[member] = LCG_BAD_ARGUMENT;
+            steps_done[member] = 0;
+        }
+        return;
+    }
     for (member = 0; member < n_members; ++member) {
         const float *p = ps + member * 11;
         float *peak = q_max + member * 5;

@@ -701,8 +701,10 @@ int lcg_rolling_wheels_f32_simulate(int method, float t0, const float *x0, const
     float *scratch = history + 2 * 1;
     long k, sample = 1, until_sample;
     int i, status = LCG_OK;
-    for (i = 0; i < 2; ++i) x[i] = x0[i];
     *steps_done = 0;
+    /* before anything is written: the caller sized the outputs by n_steps */
+    if (n_steps < 0 || !isfinite(h)) return LCG_BAD_ARGUMENT;
+    for (i = 0; i < 2; ++i) x[i] = x0[i];
     if (!lcg_rolling_wheels_f32_finite(x)) return LCG_NONFINITE_STATE;
     if (stride < 1) stride = 1;
     until_sample = stride;  /* a countdown, not k % stride: no division per step */
@@ -739,6 +741,13 @@ void lcg_rolling_wheels_f32_sweep(int method, long n_members, const float *x0s, 
     const long n_out = n_steps / (stride < 1 ? 1 : stride) + 1;
     long member;
     if (stride < 1) stride = 1;
+    if (n_steps < 0 || !isfinite(h)) {  /* before anything is written: the caller sized traj by n_steps */
+        for (member = 0; member < n_members; ++member) {
+            status[member] = LCG_BAD_ARGUMENT;
+            steps_done[member] = 0;
+        }
+        return;
+    }
     for (member = 0; member < n_members; ++member) {
         const float *p = ps + member * 6;
         float *peak = q_max + member * 1;

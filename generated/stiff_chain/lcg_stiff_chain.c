@@ -807,8 +807,10 @@ int lcg_stiff_chain_simulate(int method, double t0, const double *x0, const doub
     double *scratch = history + 2 * 3;
     long k, sample = 1, until_sample;
     int i, status = LCG_OK;
-    for (i = 0; i < 6; ++i) x[i] = x0[i];
     *steps_done = 0;
+    /* before anything is written: the caller sized the outputs by n_steps */
+    if (n_steps < 0 || !isfinite(h)) return LCG_BAD_ARGUMENT;
+    for (i = 0; i < 6; ++i) x[i] = x0[i];
     if (!lcg_stiff_chain_finite(x)) return LCG_NONFINITE_STATE;
     if (stride < 1) stride = 1;
     until_sample = stride;  /* a countdown, not k % stride: no division per step */
@@ -845,6 +847,13 @@ void lcg_stiff_chain_sweep(int method, long n_members, const double *x0s, const 
     const long n_out = n_steps / (stride < 1 ? 1 : stride) + 1;
     long member;
     if (stride < 1) stride = 1;
+    if (n_steps < 0 || !isfinite(h)) {  /* before anything is written: the caller sized traj by n_steps */
+        for (member = 0; member < n_members; ++member) {
+            status[member] = LCG_BAD_ARGUMENT;
+            steps_done[member] = 0;
+        }
+        return;
+    }
     for (member = 0; member < n_members; ++member) {
         const double *p = ps + member * 5;
         double *peak = q_max + member * 3;

@@ -169,6 +169,9 @@ def joint_map(links, coordinates) -> sp.Matrix:
             if coefficient.free_symbols or coefficient.atoms(sp.Function):
                 raise TreeError(f"link {link.name!r}: the joint variable {link.variable} is not linear in "
                                 f"{c.func.__name__} with a constant coefficient")
+            if not coefficient.is_extended_real:
+                raise TreeError(f"link {link.name!r}: the joint variable {link.variable} has the coefficient "
+                                f"{coefficient} of {c.func.__name__}, which is not a real number")
             P[i, column[c]] = coefficient
             rest = rest - coefficient * c
         rest = sp.expand(rest)

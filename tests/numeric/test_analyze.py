@@ -80,6 +80,15 @@ def test_energy_drift_needs_energy():
         measures.energy_drift(traj)
 
 
+def test_an_empty_trajectory_is_refused_by_name_not_with_an_index_error():
+    empty = dataclasses.replace(synthetic_trajectory([0.0, 1.0], [1.0, 1.0]), t=np.zeros(0), x=np.zeros((0, 2)),
+                                energy=np.zeros(0))
+    with pytest.raises(ValueError, match="no samples"):
+        measures.energy_drift(empty)
+    with pytest.raises(ValueError, match="'empty' has no samples"):
+        figures.plot_energy_error({"empty": empty}, "test")
+
+
 # -- stability --------------------------------------------------------------------------------
 @needs_cc
 @pytest.mark.compiler

@@ -15,7 +15,7 @@ import pytest
 from numpy.testing import assert_allclose, assert_array_equal
 
 from lagcodegen.codegen.lane_kernel import DEFAULT_LANES
-from lagcodegen.run.simulate import Status
+from lagcodegen.run.simulate import Status, work_size
 from lagcodegen.run.sweep import sweep
 
 pytestmark = pytest.mark.compiler
@@ -138,6 +138,38 @@ def test_c_refuses_methods_without_a_lane_stepper(pendulum):
         layout.methods.index("backward_euler"), 1, ptr(x0), ptr(p), 0.0, 0.01, 10, 1, 0, *map(ptr, out),
         ffi.from_buffer("int[]", status), ffi.from_buffer("long[]", steps), ffi.NULL)
     assert code == Status.UNKNOWN_METHOD and status[0] == -1
+
+
+@pytest.mark.parametrize("n_steps, h", [(-3, 0.01), (10, float("nan")), (10, float("inf"))])
+def test_c_refuses_a_negative_step_count_or_a_step_that_is_not_finite(pendulum, n_steps, h):
+    """The C entry points (called directly, as from C: the Python sweep checks these first)
+    return LCG_BAD_ARGUMENT and write nothing: traj is sized by n_steps, so a negative count
+    would have had its first sample written past a buffer of n_steps / stride + 1 <= 0."""
+    lane_system = pendulum.lane_variant()
+    ffi = lane_system.ffi
+    ptr = lambda a: ffi.from_buffer("double[]", a)  # noqa: E731
+    x0 = np.array([X0], dtype=float)
+    p = np.array([[1.0, 1.0, 1.0, 1.0, 9.81]])
+    for system in (lane_system, pendulum):
+        status, steps = np.full(1, -1, np.intc), np.full(1, -1, np.int_)
+        out = [np.full((1, 4), np.nan), np.full((1, 2), np.nan), np.full(1, np.nan)]
+        traj = np.full((1, 4), np.nan)
+        start = (system.layout.methods.index("rk4"), 1, ptr(x0), ptr(p), 0.0, h, n_steps, 1)
+        results = (*map(ptr, out), ffi.from_buffer("int[]", status), ffi.from_buffer("long[]", steps), ptr(traj))
+        if system is lane_system:  # (..., stride, track_energy, results)
+            code = getattr(system.lib, f"{system.layout.prefix}_sweep_lanes")(*start, 1, *results)
+            assert code == Status.BAD_ARGUMENT and status[0] == -1 and steps[0] == -1
+        else:  # (..., stride, project, track_energy, results, work)
+            work = np.full(work_size(system), np.nan)
+            getattr(system.lib, f"{system.layout.prefix}_sweep")(*start, 0, 1, *results, ptr(work))
+            assert status[0] == Status.BAD_ARGUMENT and steps[0] == 0
+        assert np.isnan(traj).all() and all(np.isnan(a).all() for a in out)
+        t_out, x_out, done = np.full(1, np.nan), np.full(4, np.nan), np.full(1, -1, np.int_)
+        work = np.full(work_size(pendulum), np.nan)
+        code = getattr(pendulum.lib, f"{pendulum.layout.prefix}_simulate")(
+            pendulum.layout.methods.index("rk4"), 0.0, ptr(x0), ptr(p), h, n_steps, 1, 0, ptr(t_out), ptr(x_out),
+            ffi.NULL, ffi.NULL, ffi.NULL, ffi.NULL, ptr(work), ffi.from_buffer("long[]", done))
+        assert code == Status.BAD_ARGUMENT and done[0] == 0 and np.isnan(t_out).all() and np.isnan(x_out).all()
 
 
 def _unconstrained_examples():

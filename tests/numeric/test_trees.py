@@ -298,6 +298,8 @@ def test_bad_trees_are_named():
         ([link("a", None, q1), link("a", "a", q2)], "link name 'a' is used twice"),
         ([link("a", None, sp.sin(q1)), link("b", "a", q2)], "joint variable sin\\(q1.*not linear in q1"),
         ([link("a", None, k * q1), link("b", "a", q2)], "joint variable k\\*q1.*not linear in q1 with a constant"),
+        ([link("a", None, sp.I * q1), link("b", "a", q2)], "joint variable I\\*q1.* has the coefficient I of q1, "
+         "which is not a real number"),
         ([link("a", None, q1), link("b", "a", 2 * q1)], "the joint variables do not determine the coordinates"),
         ([link("a", None, q1)], "the tree has 1 links .* but the model has 2 coordinates"),
     ]

@@ -166,6 +166,8 @@ def plot_energy_error(trajectories: Mapping[str, Trajectory], title: str, *,
     for label, traj in trajectories.items():
         if traj.energy is None:
             raise ValueError(f"trajectory {label!r} has no energy samples; simulate with energy=True")
+        if len(traj.energy) == 0:
+            raise ValueError(f"trajectory {label!r} has no samples (an empty slice?): nothing to plot")
         dE = np.abs(np.asarray(traj.energy, dtype=np.float64) - float(traj.energy[0]))
         ax.plot(traj.t, np.where(dE > 0, dE, np.nan), label=label, linewidth=0.8)
     ax.set_yscale("log")

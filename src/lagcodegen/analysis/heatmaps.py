@@ -319,7 +319,7 @@ STATUS_COLOURS = {CHUNK_FAILED: "#000000", NOT_RUN: _NOT_RUN_GREY, Status.OK: "#
                   Status.SINGULAR_MASS_MATRIX: "#e76f51", Status.NONFINITE_STATE: "#9b2226",
                   Status.NEWTON_FAILED: "#f4a261", Status.UNKNOWN_METHOD: "#6d597a",
                   Status.SINGULAR_CONSTRAINTS: "#457b9d", Status.NONFINITE_INPUT: "#e9c46a",
-                  Status.INPUT_FAILED: "#8ab17d"}
+                  Status.INPUT_FAILED: "#8ab17d", Status.BAD_ARGUMENT: "#bc6c25"}
 
 
 def status_legend() -> tuple[list, list, list]:

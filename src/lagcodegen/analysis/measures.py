@@ -45,6 +45,8 @@ def energy_drift(trajectory: Trajectory) -> dict:
     """
     if trajectory.energy is None:
         raise ValueError("trajectory has no energy samples; simulate with energy=True")
+    if len(trajectory.energy) == 0:
+        raise ValueError("trajectory has no samples (an empty slice?): there is no energy drift to measure")
     t = np.asarray(trajectory.t, dtype=np.float64)
     dE = np.asarray(trajectory.energy, dtype=np.float64) - float(trajectory.energy[0])
     e0 = float(trajectory.energy[0])
