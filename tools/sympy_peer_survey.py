@@ -156,8 +156,9 @@ def check(record: Recorded, index: int, cache_dir, trajectories: bool = True) ->
     try:
         inputs = specified_functions(method)
         held = getattr(method, "_hol_coneqs", sp.Matrix())  # private: a LagrangesMethod's holonomic constraints
-        parameters = sorted((method.mass_matrix.free_symbols | method.forcing.free_symbols | held.free_symbols)
-                            - {t}, key=str)
+        configuration = sp.Matrix(getattr(method, "_f_h", sp.Matrix()))  # private: Kane's configuration constraints
+        parameters = sorted((method.mass_matrix.free_symbols | method.forcing.free_symbols | held.free_symbols
+                             | configuration.free_symbols) - {t}, key=str)
         row["n_q"], row["n_u"] = len(method.q), len(getattr(method, "u", method.q))
         row["inputs"] = [str(r) for r in inputs]
         start = time.perf_counter()

@@ -108,7 +108,9 @@ class Model:
     parameter_values : mapping Symbol -> float, optional
         Default numeric values (used by examples and simulation when not overridden).
     sympy_model : LagrangesMethod, KanesMethod, System or JointsMethod, optional
-        An existing sympy model; coordinates and speeds are taken from it.
+        An existing sympy model; coordinates and speeds are taken from it. Its energy output (a
+        KanesMethod's needs ``frame``) is T + V with V the bodies' ``potential_energy`` plus
+        ``potential_energy`` here: gravity given as loads is not in it.
     constraints : sequence of Expr, optional
         Holonomic constraints phi_i(q, t) = 0 (possibly rheonomic) between redundant coordinates:
         Lagrange's equations of the first kind, with multipliers.

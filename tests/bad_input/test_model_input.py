@@ -248,3 +248,70 @@ def test_a_coordinate_or_input_named_like_time_is_refused():
     with pytest.raises(ModelError, match="input 't' is also a time symbol"):
         Model("time_input", [x], [m, k], kinetic_energy=m * x.diff() ** 2 / 2, generalized_forces={x: t_input},
               inputs=[t_input])
+
+
+# -- sympy models: inputs where they cannot go, symbols only in constraints (found by review) ----------
+
+def test_an_input_in_a_sympy_models_constraints_is_named():
+    """An input r(t) in a LagrangesMethod's hol_coneqs (a pendulum of driven length) was taken as a
+    constant in the constraint's derivatives, and the C then failed to compile; in nonhol_coneqs or
+    a Kane velocity constraint it was reported as an undeclared function."""
+    x, y, r = me.dynamicsymbols("x y r")
+    m, g = sp.symbols("m g")
+    N, O = me.ReferenceFrame("N"), me.Point("O")
+    O.set_vel(N, 0)
+    P = O.locatenew("P", x * N.x + y * N.y)
+    P.set_vel(N, x.diff() * N.x + y.diff() * N.y)
+    particle = me.Particle("p", P, m)
+    particle.potential_energy = m * g * y
+    lagrangian = me.Lagrangian(N, particle)
+    holonomic = me.LagrangesMethod(lagrangian, [x, y], hol_coneqs=[x ** 2 + y ** 2 - r ** 2])
+    rolling = me.LagrangesMethod(lagrangian, [x, y], nonhol_coneqs=[x.diff() - r])
+    for method, what in ((holonomic, "holonomic constraint 0"), (rolling, "velocity constraint 0")):
+        with pytest.raises(ModelError, match=f"input 'r' appears in the sympy model's {what}: inputs may drive "
+                                             "the loads only"):
+            derive_equations(Model("driven_constraint", parameters=[m, g], sympy_model=method, inputs=[r]))
+
+
+def test_a_declared_inputs_rate_in_a_sympy_model_is_named_as_one():
+    """A pendulum whose support moves by a declared input s(t): sympy's forcing holds s''. It was
+    reported as an undeclared function "to list in inputs=[...]", though s was listed."""
+    q, u, s = me.dynamicsymbols("q u s")
+    m, length, g = sp.symbols("m l g")
+    N, O = me.ReferenceFrame("N"), me.Point("O")
+    support = O.locatenew("S", s * N.x)
+    support.set_vel(N, s.diff() * N.x)
+    B = N.orientnew("B", "Axis", [q, N.z])
+    B.set_ang_vel(N, u * N.z)
+    bob = support.locatenew("P", -length * B.y)
+    bob.v2pt_theory(support, N, B)
+    method = me.KanesMethod(N, [q], [u], kd_eqs=[u - q.diff()])
+    method.kanes_equations([me.Particle("p", bob, m)], [(bob, -m * g * N.y)])
+    with pytest.raises(ModelError, match=r"forcing contains the input rate Derivative\(s, \(t, 2\)\): inputs may "
+                                         "enter the forcing, their rates may not"):
+        derive_equations(Model("moving_support", parameters=[m, length, g], sympy_model=method, inputs=[s]))
+
+
+def test_a_symbol_only_in_kanes_configuration_constraints_is_named():
+    """A four-bar whose ground link l4 appears only in the configuration constraints: left out of
+    parameters=, it reached the C printer ("symbol l4 has no C name")."""
+    q1, q2, q3, u1, u2, u3 = me.dynamicsymbols("q1 q2 q3 u1 u2 u3")
+    l1, l2, l3, l4, m, g = sp.symbols("l1 l2 l3 l4 m g")
+    N, O = me.ReferenceFrame("N"), me.Point("O")
+    O.set_vel(N, 0)
+    frames = [N.orientnew(name, "Axis", [angle, N.z]) for name, angle in (("A", q1), ("B", q2), ("C", q3))]
+    for frame, speed in zip(frames, (u1, u2, u3)):
+        frame.set_ang_vel(N, speed * N.z)
+    P1 = O.locatenew("P1", l1 * frames[0].x)
+    P2 = P1.locatenew("P2", l2 * frames[1].x)
+    P3 = P2.locatenew("P3", l3 * frames[2].x)
+    for point in (P1, P2, P3):
+        point.set_vel(N, point.pos_from(O).dt(N).subs({q1.diff(): u1, q2.diff(): u2, q3.diff(): u3}))
+    loop = P3.pos_from(O) - l4 * N.x
+    method = me.KanesMethod(N, [q1], [u1], kd_eqs=[u1 - q1.diff(), u2 - q2.diff(), u3 - q3.diff()],
+                            q_dependent=[q2, q3], configuration_constraints=[loop.dot(N.x), loop.dot(N.y)],
+                            u_dependent=[u2, u3], velocity_constraints=[P3.vel(N).dot(N.x), P3.vel(N).dot(N.y)])
+    method.kanes_equations([me.Particle(f"p{i}", P, m) for i, P in enumerate((P1, P2, P3))],
+                           [(P, -m * g * N.y) for P in (P1, P2, P3)])
+    with pytest.raises(ModelError, match="configuration constraint 0 uses symbols not declared as parameters: l4"):
+        derive_equations(Model("four_bar", parameters=[l1, l2, l3, m, g], sympy_model=method))

@@ -359,3 +359,30 @@ def test_linearize_refuses_a_point_that_is_no_equilibrium():
     # held at the torque that balances gravity there, it is one: K0 = m g l cos(1.2) (by hand)
     held = linearize(eom, [1.2], {}, inputs=[9.81 * math.sin(1.2)])
     assert held.K0[0, 0] == pytest.approx(9.81 * math.cos(1.2), rel=1e-12)
+
+
+def test_constrained_models_are_sent_to_the_constrained_tools():
+    # found by review: a pendulum as a particle on x^2 + y^2 = l^2 (sympy LagrangesMethod, hol_coneqs)
+    # got M0 = I, K0 = 0, frequencies [0, 0] from linearize and no equilibria from find_equilibria.
+    # The hanging pendulum's frequency is sqrt(g / l) = 3.13209 rad/s (by hand), which
+    # linearize_state gives (its reduced eigenvalues are +-3.13209j).
+    from lagcodegen.statics.state_space import linearize_state
+
+    x, y = me.dynamicsymbols("x y")
+    m, l, g = sp.symbols("m l g")
+    N, O = me.ReferenceFrame("N"), me.Point("O")
+    O.set_vel(N, 0)
+    P = O.locatenew("P", x * N.x + y * N.y)
+    P.set_vel(N, x.diff() * N.x + y.diff() * N.y)
+    particle = me.Particle("p", P, m)
+    particle.potential_energy = m * g * y
+    method = me.LagrangesMethod(me.Lagrangian(N, particle), [x, y], hol_coneqs=[x ** 2 + y ** 2 - l ** 2])
+    eom = derive_equations(Model("pendulum_on_a_circle", parameters=[m, l, g], sympy_model=method,
+                                 parameter_values={m: 1.0, l: 1.0, g: 9.81}))
+    with pytest.raises(ValueError, match=r"linearize takes models without constraints: 'pendulum_on_a_circle' has "
+                                         r"1 constraint\(s\) with multipliers.*use statics.state_space.linearize_state"):
+        linearize(eom, [0.0, -1.0], {})
+    with pytest.raises(ValueError, match="find_equilibria takes models without constraints.*constrained_equilibrium"):
+        find_equilibria(eom, {})
+    eigenvalues = np.linalg.eigvals(linearize_state(eom, [0.0, -1.0, 0.0, 0.0], values={}).A)
+    assert sorted(abs(eigenvalues.imag))[-1] == pytest.approx(math.sqrt(9.81), rel=1e-9)

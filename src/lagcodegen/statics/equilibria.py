@@ -146,6 +146,8 @@ def find_equilibria(eom: EquationsOfMotion, values: Mapping | None = None,
     >>> find_equilibria(eom)
     [{theta: 0}, {theta: pi}]
     """
+    _check_unconstrained(eom, "find_equilibria", "statics.constrained.constrained_equilibrium (holonomic "
+                         "constraints, with their multipliers)")
     eom = hold_inputs(eom, inputs)
     G = equilibrium_conditions(eom)
     if values is None:
@@ -433,7 +435,8 @@ def linearize(eom: EquationsOfMotion, q0: Any, values: Mapping | None = None, in
     ------
     ValueError
         Wrong q0 length or unknown coordinate; unknown or missing parameter; F not
-        differentiable at rest (``sign(u)`` friction, for instance).
+        differentiable at rest (``sign(u)`` friction, for instance); a model with constraints
+        (use `statics.state_space.linearize_state`).
 
     Examples
     --------
@@ -457,6 +460,8 @@ def linearize(eom: EquationsOfMotion, q0: Any, values: Mapping | None = None, in
     >>> linearize(eom, [3.141592653589793], {}).stable
     False
     """
+    _check_unconstrained(eom, "linearize", "statics.state_space.linearize_state, which reduces to the "
+                         "independent states")
     eom = hold_inputs(eom, inputs)
     point = coordinate_point(eom, q0)
     at = {qi: sp.sympify(v) for qi, v in zip(eom.q, point)}
@@ -477,12 +482,21 @@ def linearize(eom: EquationsOfMotion, q0: Any, values: Mapping | None = None, in
     return LinearModel(tuple(eom.q), tuple(float(sp.sympify(v).xreplace(numbers)) for v in point), *arrays)
 
 
+def _check_unconstrained(eom: EquationsOfMotion, what: str, instead: str) -> None:
+    """These read M and F alone: with constraints (multipliers or dependent speeds) F = 0 is not the
+    equilibrium condition and M, F's Jacobians are not the motion's (a constrained pendulum gave
+    frequencies 0 and no equilibria): a ValueError naming what to use instead."""
+    if eom.m or eom.n_dependent:
+        kind = (f"{eom.m} constraint(s) with multipliers" if eom.m else
+                f"{eom.n_dependent} dependent speed(s)")
+        raise ValueError(f"{what} takes models without constraints: {eom.name!r} has {kind}, and M and F "
+                         f"alone leave out the constraint forces; use {instead}")
+
+
 def _check_at_rest(eom: EquationsOfMotion, at: dict, rest: dict, K: sp.Matrix, values) -> None:
     """A ValueError naming the first coordinate whose generalized force at rest does not vanish at q0
     (q0 is then no equilibrium, and the linear model about it means nothing). Checked in numbers
     (``values`` over the model's defaults) where every parameter has one."""
-    if eom.m or eom.n_dependent:  # the constraint forces balance F at a constrained equilibrium
-        return
     vals = dict(eom.parameter_values) if values is None else resolve_values(eom, values)
     numbers = {p: sp.Float(v) for p, v in vals.items()}
     force = sp.Matrix(eom.forcing).xreplace(rest).xreplace(at).xreplace(numbers)

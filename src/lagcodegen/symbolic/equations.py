@@ -227,7 +227,8 @@ def make_substitution(coordinates, speeds, q, u, what: str, parameters=None, inp
         out = expr.xreplace(table)
         left = [a for a in out.atoms(sp.Derivative, AppliedUndef)]
         if left:
-            rates = sorted(str(a) for a in left if isinstance(a, sp.Derivative) and a.expr in inputs)
+            # the rate of an input reads Derivative(r, t) here: xreplace renamed the input inside it
+            rates = sorted(str(a) for a in left if isinstance(a, sp.Derivative) and a.expr in set(inputs) | set(r))
             if rates:
                 raise ModelError(f"{where} contains the input rate {rates[0]}: inputs may enter the forcing, "
                                  "their rates may not")

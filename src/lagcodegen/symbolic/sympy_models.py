@@ -17,7 +17,7 @@ from __future__ import annotations
 import sympy as sp
 import sympy.physics.mechanics as me
 
-from ..model import TIME, Model, ModelError, check_well_defined
+from ..model import TIME, Model, ModelError, check_symbols_declared, check_well_defined, input_name
 from .equations import assemble, check_mass_matrix, input_symbols, make_substitution, plain_symbols, without_baumgarte
 from .holonomic import BAUMGARTE_ALPHA, BAUMGARTE_BETA
 from .kane_terms import dyadic_frames, kane_terms
@@ -51,6 +51,11 @@ def derive_from_sympy(model: Model):
             motion = list(method._k_nh * sp.Matrix(method.u) + method._f_nh)
             if method._k_dnh == method._k_nh:  # sympy's acceleration constraints A ud + f_dnh = 0: its own d/dt
                 motion_rates = method._f_dnh
+    _check_inputs_outside_constraints(model, [("holonomic constraint", held if isinstance(method, me.LagrangesMethod)
+                                               else ()),
+                                              ("velocity constraint", motion),
+                                              ("configuration constraint",
+                                               list(configuration) if configuration is not None else [])])
     q, u = plain_symbols(coords, speeds, model.parameters)
     renamed = make_substitution(coords, speeds, q, u, "sympy model", inputs=model.inputs)
     zero = {a: 0 for a in auxiliary} | {a.diff(TIME): 0 for a in auxiliary}
@@ -100,9 +105,27 @@ def derive_from_sympy(model: Model):
     if dependent_coordinates:
         from dataclasses import replace
 
-        eom = replace(eom, configuration=sp.ImmutableMatrix(to_plain(configuration, "configuration constraints")),
+        rows = sp.ImmutableMatrix(to_plain(configuration, "configuration constraints"))
+        for i, row in enumerate(rows):  # a symbol only here reached the C printer unnamed
+            check_symbols_declared(f"model {model.name!r}: the sympy model's configuration constraint {i}",
+                                   row.free_symbols - set(model.parameters) - set(eom.q) - {TIME}, model.parameters)
+        eom = replace(eom, configuration=rows,
                       dependent_coordinates=tuple(coords.index(c) for c in dependent_coordinates))
     return _with_route(eom, route)
+
+
+def _check_inputs_outside_constraints(model: Model, groups) -> None:
+    """A ModelError naming the first input in a constraint: its rate would enter the constraint's
+    derivatives, which are formed with the input held constant (an input in a LagrangesMethod's
+    hol_coneqs was taken as a constant there, and the C then failed to compile)."""
+    inputs = set(model.inputs)
+    for what, rows in groups:
+        for i, row in enumerate(rows):
+            found = sorted(inputs & (me.find_dynamicsymbols(sp.sympify(row)) | sp.sympify(row).free_symbols), key=str)
+            if found:
+                raise ModelError(f"input {input_name(found[0])!r} appears in the sympy model's {what} {i}: inputs "
+                                 "may drive the loads only, not constraints (the constraint's derivatives would "
+                                 "hold the input's rate)")
 
 
 def _with_reactions(eom, model: Model, equations, coords, speeds, auxiliary, to_plain):
