@@ -431,11 +431,13 @@ static int lcg_cartesian_pendulum_f32_rk4_step(float t, float *x, const float *p
 
 #if LCG_BUILD_PART != 2
 /* classical Runge-Kutta (order 4): advance (t, x) by one step h; work holds 25 values. A step
- * that fails, LCG_NONFINITE_STATE for a new state that is not finite included, leaves t and x as they were. */
+ * that fails, LCG_NONFINITE_STATE for a new state that is not finite included, leaves t and x as they were;
+ * LCG_BAD_ARGUMENT for a time t or step h that is not finite (h may be negative: a step backwards). */
 int lcg_cartesian_pendulum_f32_step_rk4(float *t, float *x, const float *p, float h, float *work)
 {
     float before[4];
     int i, status;
+    if (!isfinite(*t) || !isfinite(h)) return LCG_BAD_ARGUMENT;
     for (i = 0; i < 4; ++i) before[i] = x[i];
     status = lcg_cartesian_pendulum_f32_rk4_step(*t, x, p, h, work, work + 20);
     if (status == LCG_OK && !lcg_cartesian_pendulum_f32_finite(x)) status = LCG_NONFINITE_STATE;
@@ -625,6 +627,19 @@ static void lcg_cartesian_pendulum_f32_record(long sample, float t, const float 
     if (points_out) lcg_cartesian_pendulum_f32_points(t, x, p, points_out + sample * 3);
 }
 
+/* LCG_UNKNOWN_METHOD for a method number not compiled in; LCG_BAD_ARGUMENT for n_steps < 0,
+ * stride < 1, or t0 or h not finite (h may be negative: a run backwards); else LCG_OK. */
+static int lcg_cartesian_pendulum_f32_driver_arguments(int method, float t0, float h, long n_steps, long stride)
+{
+    switch (method) {
+    case 0:
+        break;
+    default: return LCG_UNKNOWN_METHOD;
+    }
+    if (n_steps < 0 || stride < 1 || !isfinite(t0) || !isfinite(h)) return LCG_BAD_ARGUMENT;
+    return LCG_OK;
+}
+
 /* Integrate from (t0, x0) over n_steps steps of size h with the method numbered `method`
  * (LCG_CARTESIAN_PENDULUM_F32_METHOD_*), keeping every stride-th state: n_steps / stride + 1 samples in
  * t_out, x_out (4 per sample), energy_out (1 per sample, or NULL) and points_out
@@ -639,11 +654,10 @@ int lcg_cartesian_pendulum_f32_simulate(int method, float t0, const float *x0, c
     long k, sample = 1, until_sample;
     int i, status = LCG_OK;
     *steps_done = 0;
-    /* before anything is written: the caller sized the outputs by n_steps */
-    if (n_steps < 0 || !isfinite(h)) return LCG_BAD_ARGUMENT;
+    status = lcg_cartesian_pendulum_f32_driver_arguments(method, t0, h, n_steps, stride);
+    if (status != LCG_OK) return status;  /* before anything is written: the outputs are sized by n_steps / stride */
     for (i = 0; i < 4; ++i) x[i] = x0[i];
     if (!lcg_cartesian_pendulum_f32_finite(x)) return LCG_NONFINITE_STATE;
-    if (stride < 1) stride = 1;
     until_sample = stride;  /* a countdown, not k % stride: no division per step */
     lcg_cartesian_pendulum_f32_record(0, t0, x, p, t_out, x_out, energy_out, points_out, residuals_out, multipliers_out);
     for (k = 1; k <= n_steps; ++k) {
@@ -675,12 +689,12 @@ void lcg_cartesian_pendulum_f32_sweep(int method, long n_members, const float *x
     float *x = work;
     float *history = work + 4;  /* the singularity monitor's: previous and initial pivots */
     float *scratch = history + 2 * 5;
-    const long n_out = n_steps / (stride < 1 ? 1 : stride) + 1;
+    const int refused = lcg_cartesian_pendulum_f32_driver_arguments(method, t0, h, n_steps, stride);
+    const long n_out = refused ? 0 : n_steps / stride + 1;
     long member;
-    if (stride < 1) stride = 1;
-    if (n_steps < 0 || !isfinite(h)) {  /* before anything is written: the caller sized traj by n_steps */
+    if (refused) {  /* before anything is written: traj is sized by n_steps / stride */
         for (member = 0; member < n_members; ++member) {
-            status[member] = LCG_BAD_ARGUMENT;
+            status[member] = refused;
             steps_done[member] = 0;
         }
         return;

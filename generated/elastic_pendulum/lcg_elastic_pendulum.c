@@ -563,11 +563,13 @@ static int lcg_elastic_pendulum_symplectic_euler_step(double t, double *x, const
 
 #if LCG_BUILD_PART != 2
 /* classical Runge-Kutta (order 4): advance (t, x) by one step h; work holds 22 values. A step
- * that fails, LCG_NONFINITE_STATE for a new state that is not finite included, leaves t and x as they were. */
+ * that fails, LCG_NONFINITE_STATE for a new state that is not finite included, leaves t and x as they were;
+ * LCG_BAD_ARGUMENT for a time t or step h that is not finite (h may be negative: a step backwards). */
 int lcg_elastic_pendulum_step_rk4(double *t, double *x, const double *p, double h, double *work)
 {
     double before[4];
     int i, status;
+    if (!isfinite(*t) || !isfinite(h)) return LCG_BAD_ARGUMENT;
     for (i = 0; i < 4; ++i) before[i] = x[i];
     status = lcg_elastic_pendulum_rk4_step(*t, x, p, h, work, work + 20);
     if (status == LCG_OK && !lcg_elastic_pendulum_finite(x)) status = LCG_NONFINITE_STATE;
@@ -582,11 +584,13 @@ int lcg_elastic_pendulum_step_rk4(double *t, double *x, const double *p, double 
 
 #if LCG_BUILD_PART != 1
 /* symplectic (semi-implicit) Euler, momentum form (order 1): advance (t, x) by one step h; work holds 28 values. A step
- * that fails, LCG_NONFINITE_STATE for a new state that is not finite included, leaves t and x as they were. */
+ * that fails, LCG_NONFINITE_STATE for a new state that is not finite included, leaves t and x as they were;
+ * LCG_BAD_ARGUMENT for a time t or step h that is not finite (h may be negative: a step backwards). */
 int lcg_elastic_pendulum_step_symplectic_euler(double *t, double *x, const double *p, double h, double *work)
 {
     double before[4];
     int i, status;
+    if (!isfinite(*t) || !isfinite(h)) return LCG_BAD_ARGUMENT;
     for (i = 0; i < 4; ++i) before[i] = x[i];
     status = lcg_elastic_pendulum_symplectic_euler_step(*t, x, p, h, work, work + 26);
     if (status == LCG_OK && !lcg_elastic_pendulum_finite(x)) status = LCG_NONFINITE_STATE;
@@ -601,11 +605,13 @@ int lcg_elastic_pendulum_step_symplectic_euler(double *t, double *x, const doubl
 
 #if LCG_BUILD_PART != 1
 /* implicit midpoint, Gauss s=1 (order 2): advance (t, x) by one step h; work holds 50 values. A step
- * that fails, LCG_NONFINITE_STATE for a new state that is not finite included, leaves t and x as they were. */
+ * that fails, LCG_NONFINITE_STATE for a new state that is not finite included, leaves t and x as they were;
+ * LCG_BAD_ARGUMENT for a time t or step h that is not finite (h may be negative: a step backwards). */
 int lcg_elastic_pendulum_step_implicit_midpoint(double *t, double *x, const double *p, double h, double *work)
 {
     double before[4];
     int i, status;
+    if (!isfinite(*t) || !isfinite(h)) return LCG_BAD_ARGUMENT;
     for (i = 0; i < 4; ++i) before[i] = x[i];
     status = lcg_elastic_pendulum_irk_step(1, lcg_elastic_pendulum_implicit_midpoint_a, lcg_elastic_pendulum_implicit_midpoint_b, lcg_elastic_pendulum_implicit_midpoint_c, *t, x, p, h, work, work + 48);
     if (status == LCG_OK && !lcg_elastic_pendulum_finite(x)) status = LCG_NONFINITE_STATE;
@@ -751,6 +757,21 @@ static void lcg_elastic_pendulum_record(long sample, double t, const double *x, 
     if (points_out) lcg_elastic_pendulum_points(t, x, p, points_out + sample * 3);
 }
 
+/* LCG_UNKNOWN_METHOD for a method number not compiled in; LCG_BAD_ARGUMENT for n_steps < 0,
+ * stride < 1, or t0 or h not finite (h may be negative: a run backwards); else LCG_OK. */
+static int lcg_elastic_pendulum_driver_arguments(int method, double t0, double h, long n_steps, long stride)
+{
+    switch (method) {
+    case 0:
+    case 1:
+    case 2:
+        break;
+    default: return LCG_UNKNOWN_METHOD;
+    }
+    if (n_steps < 0 || stride < 1 || !isfinite(t0) || !isfinite(h)) return LCG_BAD_ARGUMENT;
+    return LCG_OK;
+}
+
 /* Integrate from (t0, x0) over n_steps steps of size h with the method numbered `method`
  * (LCG_ELASTIC_PENDULUM_METHOD_*), keeping every stride-th state: n_steps / stride + 1 samples in
  * t_out, x_out (4 per sample), energy_out (1 per sample, or NULL) and points_out
@@ -765,11 +786,10 @@ int lcg_elastic_pendulum_simulate(int method, double t0, const double *x0, const
     long k, sample = 1, until_sample;
     int i, status = LCG_OK;
     *steps_done = 0;
-    /* before anything is written: the caller sized the outputs by n_steps */
-    if (n_steps < 0 || !isfinite(h)) return LCG_BAD_ARGUMENT;
+    status = lcg_elastic_pendulum_driver_arguments(method, t0, h, n_steps, stride);
+    if (status != LCG_OK) return status;  /* before anything is written: the outputs are sized by n_steps / stride */
     for (i = 0; i < 4; ++i) x[i] = x0[i];
     if (!lcg_elastic_pendulum_finite(x)) return LCG_NONFINITE_STATE;
-    if (stride < 1) stride = 1;
     until_sample = stride;  /* a countdown, not k % stride: no division per step */
     lcg_elastic_pendulum_record(0, t0, x, p, t_out, x_out, energy_out, points_out, residuals_out, multipliers_out);
     for (k = 1; k <= n_steps; ++k) {
@@ -801,12 +821,12 @@ void lcg_elastic_pendulum_sweep(int method, long n_members, const double *x0s, c
     double *x = work;
     double *history = work + 4;  /* the singularity monitor's: previous and initial pivots */
     double *scratch = history + 2 * 2;
-    const long n_out = n_steps / (stride < 1 ? 1 : stride) + 1;
+    const int refused = lcg_elastic_pendulum_driver_arguments(method, t0, h, n_steps, stride);
+    const long n_out = refused ? 0 : n_steps / stride + 1;
     long member;
-    if (stride < 1) stride = 1;
-    if (n_steps < 0 || !isfinite(h)) {  /* before anything is written: the caller sized traj by n_steps */
+    if (refused) {  /* before anything is written: traj is sized by n_steps / stride */
         for (member = 0; member < n_members; ++member) {
-            status[member] = LCG_BAD_ARGUMENT;
+            status[member] = refused;
             steps_done[member] = 0;
         }
         return;

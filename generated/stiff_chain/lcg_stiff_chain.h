@@ -60,7 +60,7 @@
 #define LCG_SINGULAR_CONSTRAINTS 5 /* the constraint Jacobian lost rank (a singular configuration, or a step crossed one) */
 #define LCG_NONFINITE_INPUT 6 /* an input value is NaN or infinite */
 #define LCG_INPUT_FAILED 7 /* the input function failed (a callable raised or returned the wrong shape, or an empty input table) */
-#define LCG_BAD_ARGUMENT 8 /* a driver's argument is out of range (a negative number of steps, or a step size that is not finite): nothing was run or written */
+#define LCG_BAD_ARGUMENT 8 /* an argument of a C driver or step function is out of range (n_steps < 0, stride < 1, a time or step size that is not finite): nothing was run or written */
 #endif
 
 /* Mass matrix M(q, t), row-major 3 x 3. */

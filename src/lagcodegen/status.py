@@ -36,8 +36,9 @@ STATUS_TABLE = (
     StatusCode("NONFINITE_INPUT", 6, "an input value is NaN or infinite"),
     StatusCode("INPUT_FAILED", 7, "the input function failed (a callable raised or returned the wrong shape, "
                                   "or an empty input table)"),
-    StatusCode("BAD_ARGUMENT", 8, "a driver's argument is out of range (a negative number of steps, or a step "
-                                  "size that is not finite): nothing was run or written"),
+    StatusCode("BAD_ARGUMENT", 8, "an argument of a C driver or step function is out of range (n_steps < 0, "
+                                  "stride < 1, a time or step size that is not finite): nothing was run or "
+                                  "written"),
 )
 #: codes only a sweep gives its members (never returned by C)
 SWEEP_STATUS_TABLE = (

@@ -79,7 +79,7 @@ def test_nonfinite_state_is_reported_with_the_failing_step(chain, stride):
 
 def test_status_prints_its_name_and_keeps_its_value(chain):
     """print(traj.status) gave "0": IntEnum's str is the number. The C codes (LCG_*) stay."""
-    assert [int(s) for s in Status] == [0, 1, 2, 3, 4, 5, 6, 7]
+    assert [int(s) for s in Status] == [0, 1, 2, 3, 4, 5, 6, 7, 8]
     assert str(Status.OK) == f"{Status.OK}" == "OK" and f"{Status.NONFINITE_STATE:>16}" == " NONFINITE_STATE"
     assert f"{Status.NONFINITE_STATE:d}" == "2" and Status.NONFINITE_STATE == 2
     assert Status(5) is Status.SINGULAR_CONSTRAINTS and repr(Status.OK) == "<Status.OK: 0>"

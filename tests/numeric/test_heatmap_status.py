@@ -20,7 +20,7 @@ pytestmark = pytest.mark.compiler
 
 CODES = {-2: "chunk_failed", -1: "not_run", 0: "ok", 1: "singular_mass_matrix", 2: "nonfinite_state",
          3: "newton_failed", 4: "unknown_method", 5: "singular_constraints", 6: "nonfinite_input",
-         7: "input_failed"}
+         7: "input_failed", 8: "bad_argument"}
 
 
 @pytest.fixture(scope="module")

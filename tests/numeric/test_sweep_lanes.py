@@ -140,11 +140,14 @@ def test_c_refuses_methods_without_a_lane_stepper(pendulum):
     assert code == Status.UNKNOWN_METHOD and status[0] == -1
 
 
-@pytest.mark.parametrize("n_steps, h", [(-3, 0.01), (10, float("nan")), (10, float("inf"))])
-def test_c_refuses_a_negative_step_count_or_a_step_that_is_not_finite(pendulum, n_steps, h):
+@pytest.mark.parametrize("n_steps, h, stride, t0", [(-3, 0.01, 1, 0.0), (10, float("nan"), 1, 0.0),
+                                                    (10, float("inf"), 1, 0.0), (10, 0.01, 0, 0.0),
+                                                    (10, 0.01, -4, 0.0), (10, 0.01, 1, float("nan"))])
+def test_c_refuses_arguments_out_of_range(pendulum, n_steps, h, stride, t0):
     """The C entry points (called directly, as from C: the Python sweep checks these first)
-    return LCG_BAD_ARGUMENT and write nothing: traj is sized by n_steps, so a negative count
-    would have had its first sample written past a buffer of n_steps / stride + 1 <= 0."""
+    return LCG_BAD_ARGUMENT and write nothing: traj is sized by n_steps / stride, so a negative
+    count or stride had samples written past the buffer (found by review: stride <= 0 ran with
+    stride 1, writing n_steps + 1 samples, and returned OK)."""
     lane_system = pendulum.lane_variant()
     ffi = lane_system.ffi
     ptr = lambda a: ffi.from_buffer("double[]", a)  # noqa: E731
@@ -154,7 +157,7 @@ def test_c_refuses_a_negative_step_count_or_a_step_that_is_not_finite(pendulum, 
         status, steps = np.full(1, -1, np.intc), np.full(1, -1, np.int_)
         out = [np.full((1, 4), np.nan), np.full((1, 2), np.nan), np.full(1, np.nan)]
         traj = np.full((1, 4), np.nan)
-        start = (system.layout.methods.index("rk4"), 1, ptr(x0), ptr(p), 0.0, h, n_steps, 1)
+        start = (system.layout.methods.index("rk4"), 1, ptr(x0), ptr(p), t0, h, n_steps, stride)
         results = (*map(ptr, out), ffi.from_buffer("int[]", status), ffi.from_buffer("long[]", steps), ptr(traj))
         if system is lane_system:  # (..., stride, track_energy, results)
             code = getattr(system.lib, f"{system.layout.prefix}_sweep_lanes")(*start, 1, *results)
@@ -167,7 +170,7 @@ def test_c_refuses_a_negative_step_count_or_a_step_that_is_not_finite(pendulum, 
         t_out, x_out, done = np.full(1, np.nan), np.full(4, np.nan), np.full(1, -1, np.int_)
         work = np.full(work_size(pendulum), np.nan)
         code = getattr(pendulum.lib, f"{pendulum.layout.prefix}_simulate")(
-            pendulum.layout.methods.index("rk4"), 0.0, ptr(x0), ptr(p), h, n_steps, 1, 0, ptr(t_out), ptr(x_out),
+            pendulum.layout.methods.index("rk4"), t0, ptr(x0), ptr(p), h, n_steps, stride, 0, ptr(t_out), ptr(x_out),
             ffi.NULL, ffi.NULL, ffi.NULL, ffi.NULL, ptr(work), ffi.from_buffer("long[]", done))
         assert code == Status.BAD_ARGUMENT and done[0] == 0 and np.isnan(t_out).all() and np.isnan(x_out).all()
 

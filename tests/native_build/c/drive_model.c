@@ -9,8 +9,9 @@
  *      constraint residuals and multipliers where the library has them), projection on;
  *   4. per method, <prefix>_sweep over MEMBERS identical members, with the trajectories;
  *   5. an unknown method number, which must come back as LCG_UNKNOWN_METHOD;
- *   6. simulate and sweep with a negative number of steps and a NaN step size, which must come
- *      back as LCG_BAD_ARGUMENT with nothing written (the outputs are sized by n_steps).
+ *   6. simulate and sweep with arguments out of range (n_steps < 0, stride < 1, t0 or h not
+ *      finite), which must come back as LCG_BAD_ARGUMENT with nothing written (the outputs are
+ *      sized by n_steps / stride), and the step functions at a time that is not finite.
  *
  * Every buffer is allocated with exactly the size the header documents (AddressSanitizer
  * catches a write one past it) and filled with NaN first, so a value read before it is written
@@ -206,33 +207,45 @@ static int drive_unknown_method(void)
     return failed;
 }
 
-/* n_steps < 0 and h = NaN: LCG_BAD_ARGUMENT, no step done, no sample written (each output holds
- * NaN only: a caller sizing by the header allocates n_steps / stride + 1 <= 0 samples) */
-static int drive_bad_arguments(int method)
+/* n_steps < 0, stride < 1, t0 or h not finite: LCG_BAD_ARGUMENT, no step done, no sample written
+ * (each output holds NaN only: a caller sizing by the header allocates n_steps / stride + 1 <= 0
+ * samples, or none for stride 0); an unknown method with n_steps = 0: LCG_UNKNOWN_METHOD; the step
+ * function at a time that is not finite: LCG_BAD_ARGUMENT, t and x as they were */
+static int drive_bad_arguments(int method, step_function step, long work_size)
 {
     real *x0 = copy(x0_values, N_STATE), *p = copy(p_values, N_P), *work = nans(MAC(_WORK_SIZE));
     real *t_out = nans(1), *x_out = nans(N_STATE), *x_final = nans(N_STATE), *q_max = nans(N), *drift = nans(1);
-    const long n_steps[2] = {-5, STEPS};
-    const real h[2] = {LCG_DRIVE_H, (real)NAN};
+    real *step_work = nans(work_size), *x = copy(x0_values, N_STATE), t = (real)NAN;
+    const int methods[6] = {method, method, method, method, method, -1};
+    const long n_steps[6] = {-5, STEPS, STEPS, STEPS, STEPS, 0}, strides[6] = {1, 1, 0, -3, 1, 1};
+    const real h[6] = {LCG_DRIVE_H, (real)NAN, LCG_DRIVE_H, LCG_DRIVE_H, LCG_DRIVE_H, LCG_DRIVE_H};
+    const real t0[6] = {0, 0, 0, 0, (real)INFINITY, 0};
     long done = -1, member_done = -1;
     int i, failures = 0, member_status = -1;
-    for (i = 0; i < 2; ++i) {
-        const int status = FN(_simulate)(method, 0, x0, p, h[i], n_steps[i], 1, 0, t_out, x_out, NULL, NULL, NULL,
-                                         NULL, work, &done);
-        if (status != LCG_BAD_ARGUMENT || done != 0 || !isnan(t_out[0]) || !isnan(x_out[0])) {
-            printf("FAIL simulate n_steps %ld, h %g: status %d after %ld steps, t_out[0] %g; want LCG_BAD_ARGUMENT, "
-                   "nothing written\n", n_steps[i], (double)h[i], status, done, (double)t_out[0]);
+    for (i = 0; i < 6; ++i) {
+        const int want = methods[i] == -1 ? LCG_UNKNOWN_METHOD : LCG_BAD_ARGUMENT;
+        const int status = FN(_simulate)(methods[i], t0[i], x0, p, h[i], n_steps[i], strides[i], 0, t_out, x_out,
+                                         NULL, NULL, NULL, NULL, work, &done);
+        if (status != want || done != 0 || !isnan(t_out[0]) || !isnan(x_out[0])) {
+            printf("FAIL simulate case %d: status %d after %ld steps, t_out[0] %g; want %d, nothing written\n", i,
+                   status, done, (double)t_out[0], want);
             ++failures;
         }
-        FN(_sweep)(method, 1, x0, p, 0, h[i], n_steps[i], 1, 1, 1, x_final, q_max, drift, &member_status,
-                   &member_done, x_out, work);
-        if (member_status != LCG_BAD_ARGUMENT || member_done != 0 || !isnan(x_out[0])) {
-            printf("FAIL sweep n_steps %ld, h %g: status %d after %ld steps; want LCG_BAD_ARGUMENT, nothing "
-                   "written\n", n_steps[i], (double)h[i], member_status, member_done);
+        FN(_sweep)(methods[i], 1, x0, p, t0[i], h[i], n_steps[i], strides[i], 1, 1, x_final, q_max, drift,
+                   &member_status, &member_done, x_out, work);
+        if (member_status != want || member_done != 0 || !isnan(x_out[0]) || !isnan(x_final[0])) {
+            printf("FAIL sweep case %d: status %d after %ld steps; want %d, nothing written\n", i, member_status,
+                   member_done, want);
             ++failures;
         }
     }
+    i = step(&t, x, p, LCG_DRIVE_H, step_work);
+    if (i != LCG_BAD_ARGUMENT || !isnan(t) || memcmp(x, x0_values, sizeof x0_values) != 0) {
+        printf("FAIL step at t = NaN: status %d; want LCG_BAD_ARGUMENT, t and x as they were\n", i);
+        ++failures;
+    }
     free(x0), free(p), free(work), free(t_out), free(x_out), free(x_final), free(q_max), free(drift);
+    free(step_work), free(x);
     return failures;
 }
 
@@ -240,7 +253,7 @@ static int drive_bad_arguments(int method)
     failures += drive_steps(#name, FN(_step_##name), MAC(_WORK_##NAME));                 \
     failures += drive_simulate("simulate " #name, MAC(_METHOD_##NAME));                  \
     failures += drive_sweep(#name, MAC(_METHOD_##NAME));                                 \
-    failures += drive_bad_arguments(MAC(_METHOD_##NAME));                                \
+    failures += drive_bad_arguments(MAC(_METHOD_##NAME), FN(_step_##name), MAC(_WORK_##NAME));  \
     ++methods;
 
 int main(void)
