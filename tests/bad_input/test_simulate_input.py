@@ -16,7 +16,7 @@ import warnings
 import numpy as np
 import pytest
 
-from lagcodegen.run.arguments import OutputTooLargeError, output_bytes
+from lagcodegen.run.arguments import OutputTooLargeError, StrideWarning, output_bytes
 from lagcodegen.run.simulate import Status, simulate, warn_if_unstable
 
 pytestmark = pytest.mark.compiler
@@ -119,6 +119,18 @@ def test_a_run_beyond_memory_is_refused_with_its_size_and_a_stride(pendulum):
     with pytest.raises(OutputTooLargeError, match=r"1000000000001 samples: 36.4 TiB.*stride >= \d+") as info:
         run(pendulum, t_end=1e9, h=1e-3, check_stability=False)
     assert isinstance(info.value, ValueError)
+
+
+def test_a_stride_that_does_not_divide_the_steps_warns_that_the_final_state_is_not_kept(pendulum):
+    """Found by review: t_end = 1, h = 0.01, stride = 7 kept samples up to t = 0.98 and said nothing
+    (run.x[-1] is not the state at t_end); 98 = 7 * 14 is the last multiple of 7 within 100 steps."""
+    with pytest.warns(StrideWarning, match="stride = 7 does not divide the 100 steps: the samples end after step "
+                                           "98, 2 step"):
+        traj = run(pendulum, t_end=1.0, h=0.01, stride=7)
+    assert traj.t[-1] == pytest.approx(0.98)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", StrideWarning)
+        assert run(pendulum, t_end=1.0, h=0.01, stride=5).t[-1] == pytest.approx(1.0)
 
 
 def test_the_suggested_stride_fits(pendulum):

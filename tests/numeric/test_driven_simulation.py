@@ -442,3 +442,18 @@ def test_an_input_in_the_potential_energy_compiles_without_the_energy_output(tmp
     np.testing.assert_allclose(run["x"], 2.0 / 4.0 * (1 - np.cos(2 * run.t)), atol=1e-11)
     with pytest.raises(KernelError, match=r"energy of model 'potential_input' holds the input\(s\) F"):
         compile_model(model, methods=("rk4",), outputs=("rhs", "energy"), cache_dir=tmp_path)
+
+
+def test_a_swept_input_that_inputs_does_not_name_has_base_one(tmp_path):
+    """Found by review: sweeping F with inputs={"G": 0.5} raised "no value for input(s) F", though a
+    swept input's base is documented as constant 1 where inputs= gives none. Second route: one
+    simulate per member with F at the swept value."""
+    x, F, G = me.dynamicsymbols("x F G")
+    m, k = sp.symbols("m k", positive=True)
+    model = Model("two_forces", [x], [m, k], kinetic_energy=m * x.diff() ** 2 / 2, potential_energy=k * x ** 2 / 2,
+                  generalized_forces={x: F + 2 * G}, inputs=[F, G], parameter_values={m: 1.0, k: 4.0})
+    system = compile_model(model, methods=("rk4",), cache_dir=tmp_path)
+    result = sweep(system, {"F": [1.0, 3.0]}, x0={"x": 0.0}, t_end=1.0, h=1e-3, inputs={"G": 0.5}, progress=False)
+    for member, force in enumerate((1.0, 3.0)):
+        run = simulate(system, {"x": 0.0}, t_end=1.0, h=1e-3, inputs={"F": force, "G": 0.5})
+        np.testing.assert_allclose(result.x_final[member], run.x[-1], rtol=1e-14)

@@ -169,17 +169,26 @@ def test_implicit_methods_use_a_difference_jacobian_close_to_the_exact_one(tmp_p
 
 
 def test_a_massless_leaf_is_a_singular_status_not_nan(tmp_path):
-    """A tree whose last link carries no mass has a zero articulated pivot: the run stops with the
-    singular-mass-matrix status, naming no NaN."""
+    """A tree whose last link's mass is 0 at run time has a zero articulated pivot: the run stops
+    with the singular-mass-matrix status, naming no NaN. A leaf massless in the model itself is
+    refused when derived, naming the link, as the closed form refuses it (found by review: with
+    a spring or a force on its joint, 1 / D printed as zoo and the C printer failed)."""
     q1, q2 = me.dynamicsymbols("q1 q2")
-    m, g = sp.symbols("m g", positive=True)
-    model = Model("massless_leaf", [q1, q2], [m, g], gravity=(0, -g, 0), formulation="recursive",
-                  tree=[Link("upper", None, "revolute", (0, 0, 1), q1, mass=m, center=(0, -1, 0)),
-                        Link("lower", "upper", "revolute", (0, 0, 1), q2, offset=(0, -1, 0))],
-                  parameter_values={m: 1.0, g: 9.81})
+    m, m2, g, k = sp.symbols("m m2 g k", positive=True)
+    upper = Link("upper", None, "revolute", (0, 0, 1), q1, mass=m, center=(0, -1, 0))
+    model = Model("massless_leaf", [q1, q2], [m, m2, g], gravity=(0, -g, 0), formulation="recursive",
+                  tree=[upper, Link("lower", "upper", "revolute", (0, 0, 1), q2, offset=(0, -1, 0), mass=m2,
+                                    center=(0, -1, 0))],
+                  parameter_values={m: 1.0, m2: 0.0, g: 9.81})
     system = _compiled(model, tmp_path)
     with pytest.raises(FloatingPointError, match="singular"):
         make_rhs(system)(0.0, np.array([0.1, 0.2, 0.0, 0.0]))
+    for formulation, match in (("recursive", "link 'lower' \\(joint variable q2\\) has no inertia"),
+                               ("closed", "'q2' has no inertia")):
+        with pytest.raises(ModelError, match=match):
+            derive_equations(Model("massless_leaf", [q1, q2], [m, g, k], potential_energy=k * q2 ** 2 / 2,
+                                   gravity=(0, -g, 0), formulation=formulation,
+                                   tree=[upper, Link("lower", "upper", "revolute", (0, 0, 1), q2, offset=(0, -1, 0))]))
 
 
 def test_fixed_parameters_fold_into_the_recursion(tmp_path):
@@ -312,3 +321,31 @@ def test_bad_trees_are_named():
         Model("no_tree", [q1], [k], kinetic_energy=q1.diff() ** 2, formulation="recursive")
     with pytest.raises(ModelError, match="formulation 'elimination' is for velocity constraints"):
         Model("bad_tree", [q1, q2], [k], tree=[link("a", None, q1), link("b", "a", q2)], formulation="elimination")
+
+
+def test_the_recursive_form_sends_the_statics_to_the_closed_form_and_drops_a_driven_energy(tmp_path):
+    """Found by review: linearize_state and find_equilibria on a recursive tree failed with numpy's
+    and sympy's own errors (it forms no M and F); and an input in a recursive tree's potential
+    energy (a servo spring's setpoint) made the energy kernel read r, which it does not take:
+    the C failed to compile. The closed form drops that energy; so does the recursive one now."""
+    from lagcodegen.statics.equilibria import find_equilibria, linearize
+    from lagcodegen.statics.state_space import linearize_state
+
+    q1, setpoint = me.dynamicsymbols("q1 w")
+    k = sp.Symbol("k", positive=True)
+    arm = [Link("arm", None, "revolute", (0, 0, 1), q1, mass=1, center=(1, 0, 0))]
+    eom = derive_equations(Model("servo", [q1], [k], tree=arm, potential_energy=k * q1 ** 2 / 2,
+                                 parameter_values={k: 5.0}, formulation="recursive"))
+    for call, name in ((lambda: linearize_state(eom, [0.0, 0.0], values={}), "linearize_state"),
+                       (lambda: find_equilibria(eom, {}), "find_equilibria"), (lambda: linearize(eom, [0.0]), "linearize")):
+        with pytest.raises(ValueError, match=f"{name} needs the closed-form M and F.*formulation='closed'"):
+            call()
+    driven = Model("servo_driven", [q1], [k], tree=arm, potential_energy=k * (q1 - setpoint) ** 2 / 2, inputs=[setpoint],
+                   parameter_values={k: 5.0}, formulation="recursive")
+    system = compile_model(driven, methods=("rk4",), cache_dir=tmp_path)
+    assert not any(name.endswith("_energy") for name in system.layout.functions)
+    with pytest.raises(KernelError, match="holds the input"):
+        compile_model(driven, methods=("rk4",), outputs=("rhs", "energy"), cache_dir=tmp_path)
+    # the arm (I = 1 about the joint) held at w = 0.2 by k = 5: q1 = 0.2 (1 - cos(sqrt(5) t)) (by hand)
+    run = simulate(system, [0.0, 0.0], t_end=1.0, h=1e-3, inputs=[0.2])
+    assert run.x[-1, 0] == pytest.approx(0.2 * (1 - np.cos(np.sqrt(5.0))), rel=1e-10)

@@ -199,7 +199,8 @@ def momentum_obstacle(eom: EquationsOfMotion) -> str | None:
 def _energy_obstacle(eom: EquationsOfMotion) -> str | None:
     if eom.energy is None and eom.tree is None:
         return f"model {eom.name!r} has no energies (route {eom.route}); drop 'energy'"
-    driving = sorted(set(eom.inputs) & eom.energy.free_symbols, key=str) if eom.energy is not None else []
+    energy = eom.tree.energy if eom.tree is not None else eom.energy  # a recursive tree's is its own
+    driving = sorted(set(eom.inputs) & energy.free_symbols, key=str) if energy is not None else []
     if driving:  # E(q, u, r): no conserved quantity to track, and the kernel E(t, x, p) cannot read r
         return (f"the energy of model {eom.name!r} holds the input(s) {', '.join(map(str, driving))} (an input in "
                 "the potential energy); drop 'energy'")

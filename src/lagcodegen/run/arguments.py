@@ -15,6 +15,7 @@ import math
 import numbers
 import operator
 import os
+import warnings
 
 import numpy as np
 
@@ -106,13 +107,23 @@ def step_count(t0: float, t_end: float, h: float) -> int:
     return n
 
 
+class StrideWarning(UserWarning):
+    """The stride does not divide the step count: the samples end before the final state."""
+
+
 def stride_within(stride, n_steps: int) -> int:
     """``stride`` checked as a positive int no larger than the step count (a larger one keeps
-    only the initial state and silently drops the final one)."""
+    only the initial state and silently drops the final one); a `StrideWarning` when it does not
+    divide the step count (the last sample is then not the final state)."""
     stride = positive_int(stride, "stride")
     if stride > n_steps:
         raise ValueError(f"stride = {stride} exceeds the number of steps ({n_steps}): only the initial "
                          f"state would be kept; use stride <= {n_steps}")
+    if n_steps % stride:
+        warnings.warn(StrideWarning(
+            f"stride = {stride} does not divide the {n_steps} steps: the samples end after step "
+            f"{n_steps - n_steps % stride}, {n_steps % stride} step(s) before the final state (a sweep's "
+            "x_final is the final state); use a stride that divides the step count"), stacklevel=3)
     return stride
 
 

@@ -317,7 +317,8 @@ def _lanes(system: CompiledSystem, method: str, project: bool, kernel: str, held
     elif layout.measurements:
         reason = "the measurements' summaries are kept by the scalar kernel only"
     elif f"{layout.prefix}_sweep_lanes" not in layout.functions:
-        reason = f"model {layout.model!r} was built without the lane kernel (compile_model(lanes=0), or constrained)"
+        reason = (f"model {layout.model!r} was built without the lane kernel (compile_model(lanes=0), a "
+                  "constrained model, or a tree in the recursive formulation)")
     if reason is None and kernel != "scalar":
         return int(getattr(system.lib, f"{layout.prefix.upper()}_LANES"))
     if kernel == "lanes":

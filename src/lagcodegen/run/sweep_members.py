@@ -196,6 +196,9 @@ def member_input_tables(system: CompiledSystem, columns, values, inputs, member_
                              "or sweep it")
         if callable(inputs) and not isinstance(inputs, np.ndarray):
             raise InputError("a sweep takes its inputs as constants, arrays or tables, not a callable")
+        if isinstance(inputs, Mapping):  # a swept input inputs= does not name: base 1, as documented
+            named = {getattr(key, "name", str(key)) for key in inputs}
+            inputs = {**{name: 1.0 for name in sorted(swept_names - named)}, **inputs}
         base = InputTable(np.zeros(1), np.ones((1, n_r))) if inputs is None else \
             resolve_inputs(layout, inputs, t0, h, n_steps, stride, hold)
         scale = np.ones((n_members, n_r))

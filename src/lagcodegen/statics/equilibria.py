@@ -63,8 +63,17 @@ def equilibrium_conditions(eom: EquationsOfMotion) -> sp.ImmutableMatrix:
     ValueError
         If an entry depends on t: the model has no steady (relative) equilibrium.
     """
+    require_closed_form(eom, "equilibrium_conditions")
     G = eom.forcing.xreplace({ui: 0 for ui in eom.u})
     return sp.ImmutableMatrix([_steady_entry(eom, i, g) for i, g in enumerate(G)])
+
+
+def require_closed_form(eom: EquationsOfMotion, what: str) -> None:
+    """The statics read M and F, which a kinematic tree's recursive formulation does not form (it
+    failed with numpy's and sympy's own errors): a ValueError saying how to get them."""
+    if eom.tree is not None:
+        raise ValueError(f"{what} needs the closed-form M and F, which the recursive formulation of "
+                         f"{eom.name!r} does not form; Model(..., formulation='closed') forms them")
 
 
 def _steady_entry(eom: EquationsOfMotion, i: int, g: sp.Expr) -> sp.Expr:
@@ -146,6 +155,7 @@ def find_equilibria(eom: EquationsOfMotion, values: Mapping | None = None,
     >>> find_equilibria(eom)
     [{theta: 0}, {theta: pi}]
     """
+    require_closed_form(eom, "find_equilibria")
     _check_unconstrained(eom, "find_equilibria", "statics.constrained.constrained_equilibrium (holonomic "
                          "constraints, with their multipliers)")
     eom = hold_inputs(eom, inputs)
@@ -460,6 +470,7 @@ def linearize(eom: EquationsOfMotion, q0: Any, values: Mapping | None = None, in
     >>> linearize(eom, [3.141592653589793], {}).stable
     False
     """
+    require_closed_form(eom, "linearize")
     _check_unconstrained(eom, "linearize", "statics.state_space.linearize_state, which reduces to the "
                          "independent states")
     eom = hold_inputs(eom, inputs)

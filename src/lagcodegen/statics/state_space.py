@@ -23,7 +23,7 @@ import sympy as sp
 from sympy.matrices.exceptions import NonInvertibleMatrixError
 
 from ..symbolic.derive import EquationsOfMotion
-from .equilibria import input_point, named_point, resolve_values, substitute_values
+from .equilibria import input_point, named_point, require_closed_form, resolve_values, substitute_values
 
 
 @dataclass(frozen=True)
@@ -133,6 +133,7 @@ def linearize_state(eom: EquationsOfMotion, x0: Any, r0: Any = None, values: Map
     if eom.m and values is None:
         raise ValueError(f"model {eom.name!r} has constraints: its linearization is numeric; pass values= "
                          "({} for the defaults)")
+    require_closed_form(eom, "linearize_state")
     states = tuple(eom.q) + tuple(eom.u)
     if eom.n_dependent:
         x0 = _with_dependent_speeds(eom, x0, values, t0)

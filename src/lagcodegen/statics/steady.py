@@ -22,7 +22,7 @@ import numpy as np
 import sympy as sp
 
 from ..symbolic.derive import EquationsOfMotion
-from .equilibria import named_point, resolve_values, substitute_values
+from .equilibria import named_point, require_closed_form, resolve_values, substitute_values
 
 
 @dataclass(frozen=True)
@@ -60,6 +60,8 @@ def steady_motion(eom: EquationsOfMotion, given: Mapping, unknowns: Sequence[str
     match the equations, or no convergence (with the residual reached).
     """
     from scipy.optimize import root
+
+    require_closed_form(eom, "steady_motion")
 
     if not steady:
         raise ValueError("steady motion: name at least one steady speed")
@@ -119,6 +121,7 @@ def steady_eigenvalues(eom: EquationsOfMotion, motion: SteadyMotion, cyclic: Seq
     same Lagrange I solve `steady_motion` uses (Routh's reduction; e.g. Neimark and Fufaev,
     Dynamics of Nonholonomic Systems, ch. 4, for steady motions of a rolling disc).
     """
+    require_closed_form(eom, "steady_eigenvalues")
     names = list(motion.names)
     q_names = [s.name for s in eom.q]
     u_names = [s.name for s in eom.u]

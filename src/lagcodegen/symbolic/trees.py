@@ -24,7 +24,7 @@ from dataclasses import dataclass, replace
 import sympy as sp
 import sympy.physics.mechanics as me
 
-from ..model import Model
+from ..model import Model, ModelError
 from ..tree import joint_map
 from .equations import EquationsOfMotion, assemble, lagrange_symbols
 
@@ -377,6 +377,10 @@ def derive_recursive(model: Model, choice: FormulationChoice | None = None) -> E
         S = joints[i].S
         U[i] = rec.vector(_mv(Ii, S), f"U{i}", "012345")
         D[i] = rec.bind(_dot(S, U[i]), f"D_{i}")
+        if D[i] == 0:  # 1 / D would print as zoo: refused as the closed form refuses a speed without inertia
+            raise ModelError(f"model {model.name!r}: link {links[i].name!r} (joint variable {theta[i]}) has no "
+                             "inertia: it is massless and carries no link with mass, so its joint's acceleration "
+                             "is not determined; give it a mass or an inertia about its axis")
         u_[i] = rec.bind(tau[i] - _dot(S, pi), f"u_{i}")
         Dinv = rec.bind(1 / D[i], f"Dinv_{i}")
         D_inverse[i] = Dinv
