@@ -50,7 +50,7 @@
 #ifndef LCG_STATUS_CODES
 #define LCG_STATUS_CODES
 #define LCG_OK 0 /* success */
-#define LCG_SINGULAR_MASS_MATRIX 1 /* the mass matrix is singular or not positive definite (or a step crossed a singular configuration) */
+#define LCG_SINGULAR_MASS_MATRIX 1 /* the mass matrix is singular or not positive definite, or a step changed its pivots more than 100-fold (a singular configuration crossed, or a step too coarse for the monitor: a smaller h tells) */
 #define LCG_NONFINITE_STATE 2 /* the state or its derivatives became NaN or infinite (the run diverged) */
 #define LCG_NEWTON_FAILED 3 /* the implicit step's Newton iteration did not converge */
 #define LCG_UNKNOWN_METHOD 4 /* the method is not compiled into this kernel */

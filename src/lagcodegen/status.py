@@ -26,8 +26,9 @@ class StatusCode:
 #: codes the generated C returns (the order is the C header's)
 STATUS_TABLE = (
     StatusCode("OK", 0, "success"),
-    StatusCode("SINGULAR_MASS_MATRIX", 1, "the mass matrix is singular or not positive definite (or a step "
-                                          "crossed a singular configuration)"),
+    StatusCode("SINGULAR_MASS_MATRIX", 1, "the mass matrix is singular or not positive definite, or a step "
+                                          "changed its pivots more than 100-fold (a singular configuration "
+                                          "crossed, or a step too coarse for the monitor: a smaller h tells)"),
     StatusCode("NONFINITE_STATE", 2, "the state or its derivatives became NaN or infinite (the run diverged)"),
     StatusCode("NEWTON_FAILED", 3, "the implicit step's Newton iteration did not converge"),
     StatusCode("UNKNOWN_METHOD", 4, "the method is not compiled into this kernel"),

@@ -31,7 +31,7 @@ import sympy as sp
 import sympy.physics.mechanics as me
 from scipy.integrate import solve_ivp
 
-from lagcodegen import catalog, derive_equations
+from lagcodegen import Link, catalog, derive_equations
 from lagcodegen.integrators.schemes import KIND_EXPLICIT, SCHEMES, get_scheme
 from lagcodegen.model import Model
 from lagcodegen.pipeline import compile_model
@@ -355,3 +355,20 @@ def test_non_folding_four_bar_and_cartesian_pendulum_stay_ok(compiled_system, pr
     theta0, l = 1.0, 1.0
     simulate(pendulum, (l * math.sin(theta0), -l * math.cos(theta0), 0.0, 0.0), 10.0, 1e-3, "rk4",
              project=True).check()
+
+
+def test_a_coarse_step_where_a_pivot_is_small_is_stopped_and_says_a_smaller_h_tells(tmp_path):
+    """Found by review: a bead sliding through the hub of a light rod (M = diag(1e-4 + r^2, 1), never
+    singular) from r = 0.1 at r' = -10 with the rod at rest moves as r = 0.1 - 10 t (by hand: no
+    force, no rotation). At h = 1e-2 one step takes the pivot from 1.01e-2 to 1e-4, and the 100x
+    rule stops the run; the status says a smaller h tells, and at h = 1e-3 the run passes, exact."""
+    th, r = me.dynamicsymbols("th r")
+    tree = [Link("rod", None, "revolute", (0, 0, 1), th, mass=0.01, inertia=(0, 0, 1e-4, 0, 0, 0)),
+            Link("bead", "rod", "prismatic", (1, 0, 0), r, mass=1.0)]
+    system = compile_model(Model("bead", [th, r], [], tree=tree, formulation="closed"), methods=("rk4",),
+                           cache_dir=tmp_path)
+    start = {"th": 0.0, "r": 0.1, "th_d": 0.0, "r_d": -10.0}
+    coarse = quiet_simulate(system, start, 0.05, 1e-2, "rk4")
+    assert coarse.status == Status.SINGULAR_MASS_MATRIX and "a smaller h tells" in coarse.message
+    fine = simulate(system, start, 0.05, 1e-3, "rk4")
+    assert fine.ok and fine["r"][-1] == pytest.approx(0.1 - 10 * 0.05, abs=1e-12) and fine["th"][-1] == 0.0
