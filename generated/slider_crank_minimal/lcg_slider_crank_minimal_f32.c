@@ -605,7 +605,7 @@ static int lcg_slider_crank_minimal_f32_irk_step(int s, const float *a, const fl
         if (size <= 1e-05F) break;
         /* stalled at the rounding of a stiff f (about eps |df/dx| h |x|, above the tolerance for a
          * stiff spring): converged as far as the arithmetic goes, when that level is small */
-        if (iteration > 0 && size >= 0.9F * previous && size <= 0.0001F) break;
+        if (iteration > 0 && size >= 0.9F * previous && size <= 1e-05F) break;
         previous = size;
     }
     if (iteration == 30) return LCG_NEWTON_FAILED;

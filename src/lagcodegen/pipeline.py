@@ -56,16 +56,17 @@ def compile_model(model: Model | EquationsOfMotion, *, outputs=None, fixed: Mapp
     Parameters
     ----------
     model : Model or EquationsOfMotion
-    outputs : sequence of str, optional
-        Kernel outputs; default ``SIMULATION_OUTPUTS`` (without ``energy`` when the model has no
-        energies, without ``jacobian`` when no implicit method is requested). The outputs the
+    outputs : str or sequence of str, optional
+        Kernel outputs (one name: that output alone); default ``SIMULATION_OUTPUTS`` (without
+        ``energy`` when the model has no energies, without ``jacobian`` when no implicit method
+        is requested). The outputs the
         methods need (``rhs``; ``jacobian`` for implicit ones; ``momentum`` for symplectic Euler)
         are always added.
     fixed : mapping parameter (Symbol or name) -> real number, optional
         Parameters folded into the code; the rest stay runtime inputs. A value that is not a
         finite real number, or a name that is not a parameter, raises ``KernelError`` naming it.
-    methods : sequence of str
-        Integration schemes to compile in (`schemes.SCHEMES`).
+    methods : str or sequence of str
+        Integration schemes to compile in (`schemes.SCHEMES`; one name: that scheme alone).
     precision : {"double", "float"}
     trig : {"libm", "inline"}
         How sine and cosine are computed (`render.render_sources`): libm calls (default) or the
@@ -99,8 +100,11 @@ def compile_model(model: Model | EquationsOfMotion, *, outputs=None, fixed: Mapp
     >>> system.layout.parameters, system.layout.methods
     (('m', 'k'), ('rk4',))
     """
+    # one name is that one (a str is a sequence too: "rhs" read as the outputs 'r', 'h', 's')
+    outputs = (outputs,) if isinstance(outputs, str) else outputs
+    methods = (methods,) if isinstance(methods, str) else methods
     alias = _model_entry(model, outputs, fixed, methods, precision, (trig, lanes, lane_trig), cache_dir)
-    stored = _load_sources(_aliased_sources(alias, cache_dir)) if alias is not None else None
+    stored = _load_sources(*_aliased_sources(alias, cache_dir)) if alias is not None else None
     if stored is not None:
         sources, with_lanes, ops = stored
         return _build(model.name, sources, with_lanes, ops, cache_dir, extra_compile_args)
@@ -117,7 +121,7 @@ def compile_model(model: Model | EquationsOfMotion, *, outputs=None, fixed: Mapp
     fixed = _checked_fixed(eom, fixed)
     key = _sources_key(eom, outputs, fixed, methods, precision, (trig, lanes, lane_trig))
     entry = cache.cache_dir(cache_dir) / "sources" / f"{key[:32]}.json"
-    stored = _load_sources(entry)
+    stored = _load_sources(entry, key)
     if stored is None:
         system = reduce_expressions(eom, outputs, fixed)
         sources = render_sources(system, precision, methods=methods, trig=trig)
@@ -126,7 +130,7 @@ def compile_model(model: Model | EquationsOfMotion, *, outputs=None, fixed: Mapp
         if with_lanes is not None and f"{with_lanes.layout.prefix}_sweep_lanes" not in with_lanes.layout.functions:
             with_lanes = None
         stored = (sources, with_lanes, _function_ops(system))
-        _store_sources(entry, stored)
+        _store_sources(entry, stored, key)
     if alias is not None:
         _store_alias(alias, key)
     sources, with_lanes, ops = stored
@@ -180,7 +184,7 @@ def _model_entry(model, outputs, fixed, methods, precision, code_options, cache_
         pickler = pickle.Pickler(buffer, protocol=4)
         pickler.fast = True  # as equations_digest: bytes that follow the values
         pickler.dump((fields, None if outputs is None else list(outputs),
-                      sorted((str(k), repr(v)) for k, v in (fixed or {}).items()), list(methods)))
+                      sorted((str(k), _fixed_key(v)) for k, v in (fixed or {}).items()), list(methods)))
     except (pickle.PicklingError, TypeError, AttributeError, ValueError, RecursionError):
         return None
     key = cache.source_key({"lagcodegen": __version__, "sympy": sp.__version__,
@@ -189,16 +193,27 @@ def _model_entry(model, outputs, fixed, methods, precision, code_options, cache_
     return cache.cache_dir(cache_dir) / "sources" / f"model-{key[:32]}.txt"
 
 
-def _aliased_sources(alias: Path, cache_dir) -> Path:
-    """The sources entry a model entry names (a missing or damaged one names none)."""
+def _fixed_key(value) -> str:
+    """A fixed value as the kernel will fold it (float.hex: exact), for the model entry's key; repr
+    of sp.Float(1.4, 2) is '1.4' while it folds as 1.400390625. A value that is no number keys by
+    repr (the derivation then refuses it)."""
+    try:
+        return _fixed_value("", value).hex()
+    except KernelError:
+        return repr(value)
+
+
+def _aliased_sources(alias: Path, cache_dir) -> tuple[Path, str]:
+    """(the sources entry a model entry names, its key); a missing or damaged one names none."""
     try:
         head, _, body = alias.read_bytes().partition(b"\n")
     except OSError:
-        return alias.with_suffix(".missing")
+        return alias.with_suffix(".missing"), ""
     if head != f"{_SOURCES_MAGIC} {hashlib.sha256(body).hexdigest()}".encode("ascii") or len(body) != 64 or \
             not all(c in b"0123456789abcdef" for c in body):
-        return alias.with_suffix(".missing")
-    return cache.cache_dir(cache_dir) / "sources" / f"{body.decode('ascii')[:32]}.json"
+        return alias.with_suffix(".missing"), ""
+    key = body.decode("ascii")
+    return cache.cache_dir(cache_dir) / "sources" / f"{key[:32]}.json", key
 
 
 def _store_alias(alias: Path, key: str) -> None:
@@ -299,18 +314,21 @@ def code_digest(package: Path, templates: Path) -> str:
     return digest.hexdigest()
 
 
-_SOURCES_MAGIC = "lagcodegen-sources-v1"
+_SOURCES_MAGIC = "lagcodegen-sources-v2"
 
 
-def _load_sources(entry: Path) -> tuple | None:
+def _load_sources(entry: Path, key: str) -> tuple | None:
     """(sources, sources with the lane kernel or None, {kernel: ops after CSE}), or None when the
-    entry is missing or fails any check (then the caller renders again and replaces it)."""
+    entry is missing or fails any check (then the caller renders again and replaces it). The body
+    names its own key: an intact entry copied over another's file is another model's."""
     try:
         data = entry.read_bytes()
         head, _, body = data.partition(b"\n")
         if head != f"{_SOURCES_MAGIC} {hashlib.sha256(body).hexdigest()}".encode("ascii"):
             return None  # damaged (or written by another format): any byte counts
         stored = json.loads(body.decode("utf-8"))
+        if stored["key"] != key:
+            return None
         lanes = stored["lanes"]
         ops = {str(k): int(v) for k, v in stored["ops"].items()}
         return (_csources(stored["sources"]), None if lanes is None else _csources(lanes), ops)
@@ -326,10 +344,10 @@ def _csources(fields: dict) -> CSources:
     return CSources(layout=layout, **{k: v for k, v in fields.items() if k != "layout"})
 
 
-def _store_sources(entry: Path, stored: tuple) -> None:
+def _store_sources(entry: Path, stored: tuple, key: str) -> None:
     """Write the entry atomically; a cache dir that cannot take it only costs a warning."""
     sources, lanes, ops = stored
-    body = json.dumps({"sources": dataclasses.asdict(sources),
+    body = json.dumps({"key": key, "sources": dataclasses.asdict(sources),
                        "lanes": None if lanes is None else dataclasses.asdict(lanes), "ops": ops},
                       sort_keys=True, ensure_ascii=False).encode("utf-8")
     _write_atomically(entry, f"{_SOURCES_MAGIC} {hashlib.sha256(body).hexdigest()}\n".encode("ascii") + body)

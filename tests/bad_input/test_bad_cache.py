@@ -11,17 +11,21 @@ from __future__ import annotations
 
 import errno
 import json
+import math
 import re
 import tempfile
 from pathlib import Path
 
 import numpy as np
 import pytest
+import sympy as sp
+import sympy.physics.mechanics as me
 
-from lagcodegen import pipeline
+from lagcodegen import Model, pipeline
 from lagcodegen.native import build, cache
 from lagcodegen.native.build import compiler_available
 from lagcodegen.pipeline import compile_model
+from lagcodegen.run.simulate import simulate
 
 needs_cc = pytest.mark.skipif(not compiler_available(), reason="no C compiler / Python headers")
 pytestmark = [pytest.mark.compiler, needs_cc]
@@ -66,6 +70,11 @@ def sources_entry(root: Path) -> Path:
     return entry
 
 
+def own_key(entry: Path) -> str:
+    """The key an intact sources entry names in its body."""
+    return json.loads(entry.read_bytes().partition(b"\n")[2])["key"]
+
+
 # --- damaged sources entries ------------------------------------------------------------------
 
 def test_every_sampled_one_byte_corruption_of_the_sources_entry_is_seen(fresh_cache, pendulum):
@@ -74,26 +83,62 @@ def test_every_sampled_one_byte_corruption_of_the_sources_entry_is_seen(fresh_ca
     # them with UnicodeDecodeError and compiled edited C text silently.
     compile_model(pendulum, methods=("rk4",))
     entry = sources_entry(fresh_cache)
-    data = entry.read_bytes()
-    assert pipeline._load_sources(entry) is not None
+    data, key = entry.read_bytes(), own_key(entry)
+    assert pipeline._load_sources(entry, key) is not None
     rng = np.random.default_rng(20240611)
     for _ in range(300):
         offset = int(rng.integers(len(data)))
         changed = bytearray(data)
         changed[offset] = (changed[offset] + int(rng.integers(1, 256))) % 256
         entry.write_bytes(bytes(changed))
-        assert pipeline._load_sources(entry) is None, f"byte {offset} changed, not seen"
+        assert pipeline._load_sources(entry, key) is None, f"byte {offset} changed, not seen"
     entry.write_bytes(data)
-    assert pipeline._load_sources(entry) is not None
+    assert pipeline._load_sources(entry, key) is not None
 
 
 def test_sources_entry_is_json_not_pickle(fresh_cache, pendulum):
     system = compile_model(pendulum, methods=("rk4",))
     head, _, body = sources_entry(fresh_cache).read_bytes().partition(b"\n")
-    assert re.fullmatch(rb"lagcodegen-sources-v1 [0-9a-f]{64}", head)
+    assert re.fullmatch(rb"lagcodegen-sources-v2 [0-9a-f]{64}", head)
     stored = json.loads(body)
     assert stored["sources"]["source"].startswith("/*") and stored["ops"]["dynamics"] > 0
     assert pipeline._csources(stored["sources"]) == system.sources  # lossless round trip
+
+
+def _oscillator(name: str):
+    x = me.dynamicsymbols("x")
+    m, k = sp.symbols("m k", positive=True)
+    return Model(name, [x], [m, k], kinetic_energy=m * x.diff() ** 2 / 2, potential_energy=k * x ** 2 / 2,
+                 parameter_values={m: 1.0, k: 1.0})
+
+
+def test_another_models_intact_entry_copied_over_this_ones_is_not_loaded(fresh_cache):
+    """Found by review: an intact sources entry (its checksum right) copied onto another entry's
+    file names was loaded as the other model: model 'alias' with k fixed at 1.4, and x(1) = 0.378
+    with status OK where cos(1) = 0.5403 (unit mass and stiffness, x(0) = 1, by hand)."""
+    compile_model(_oscillator("plain"), methods=("rk4",))
+    plain_files = sorted(p for p in (fresh_cache / "sources").iterdir() if p.suffix == ".json")
+    compile_model(_oscillator("alias"), methods=("rk4",), fixed={"k": 1.4})
+    (alias_file,) = [p for p in (fresh_cache / "sources").iterdir() if p.suffix == ".json" and p not in plain_files]
+    for target in plain_files:
+        target.write_bytes(alias_file.read_bytes())
+    build._MEMO.clear()  # as in a new process: only the disk serves
+    again = compile_model(_oscillator("plain"), methods=("rk4",))
+    assert again.layout.model == "plain" and again.layout.fixed == ()
+    run = simulate(again, [1.0, 0.0], t_end=1.0, h=1e-3)
+    assert run.ok and run.x[-1, 0] == pytest.approx(math.cos(1.0), abs=1e-10)
+
+
+def test_fixed_values_that_print_alike_are_different_kernels(fresh_cache):
+    """Found by review: the model entry keyed a fixed value by repr, and repr(sp.Float(1.4, 2)) is
+    '1.4' while it folds as 1.400390625: the plain 1.4 then reused that kernel. x(1) =
+    cos(sqrt(1.4)) for unit mass and x(0) = 1 (by hand)."""
+    coarse = compile_model(_oscillator("folded"), methods=("rk4",), fixed={"k": sp.Float(1.4, 2)})
+    assert coarse.layout.fixed == (("k", 1.400390625),)
+    exact = compile_model(_oscillator("folded"), methods=("rk4",), fixed={"k": 1.4})
+    assert exact.layout.fixed == (("k", 1.4),)
+    run = simulate(exact, [1.0, 0.0], t_end=1.0, h=1e-3)
+    assert run.x[-1, 0] == pytest.approx(math.cos(math.sqrt(1.4)), abs=1e-10)
 
 
 @pytest.mark.parametrize("seed", [1, 2, 3])
@@ -124,7 +169,7 @@ def test_sources_entry_of_the_wrong_kind_is_replaced(fresh_cache, pendulum, refe
     entry.mkdir()  # a directory where the file belongs
     (entry / "junk").write_text("x")
     assert np.array_equal(rhs(compile_model(pendulum, methods=("rk4",))), reference)
-    assert entry.is_file() and pipeline._load_sources(entry) is not None
+    assert entry.is_file() and pipeline._load_sources(entry, own_key(entry)) is not None
 
     folder = fresh_cache / "sources"
     for item in folder.iterdir():
@@ -133,7 +178,8 @@ def test_sources_entry_of_the_wrong_kind_is_replaced(fresh_cache, pendulum, refe
     folder.write_text("a file where the sources folder belongs")
     build._MEMO.clear()
     assert np.array_equal(rhs(compile_model(pendulum, methods=("rk4",))), reference)
-    assert folder.is_dir() and pipeline._load_sources(sources_entry(fresh_cache)) is not None
+    assert folder.is_dir() and pipeline._load_sources(sources_entry(fresh_cache), own_key(sources_entry(fresh_cache))) \
+        is not None
 
 
 # --- unusable cache directories ---------------------------------------------------------------

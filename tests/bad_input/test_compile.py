@@ -75,6 +75,13 @@ def test_numeric_fixed_values_of_any_kind_are_accepted(pendulum, value, expected
     assert pipeline._checked_fixed(pendulum, {sp.Symbol("g", positive=True): value}) == {"g": expected}
 
 
+def test_one_output_or_method_given_as_a_string_is_that_one(pendulum, fresh_cache):
+    """Found by review: outputs="rhs" read as the outputs 'r', 'h', 's' ("unknown output 'r'")."""
+    one = compile_model(pendulum, outputs="rhs", methods="rk4")
+    assert one.layout.methods == ("rk4",) and one.layout.functions == \
+        compile_model(pendulum, outputs=("rhs",), methods=("rk4",)).layout.functions
+
+
 def test_empty_model_name_is_a_model_error():
     q = sp.Function("q")(TIME)
     for name in ("", "   "):

@@ -356,3 +356,27 @@ def test_implicit_methods_hold_a_very_stiff_spring(tmp_path_factory, K):
         assert run.status == Status.OK, (method, run.message)
         exact = np.cos(run.t / math.sqrt(2.0))
         assert np.abs(run["x1"] - exact).max() < tolerance and np.abs(run["x2"] - exact).max() < tolerance, method
+
+
+def test_float_implicit_steps_are_not_accepted_before_they_converge(tmp_path):
+    """Found by review: in float, an implicit-midpoint step of the double pendulum at h = 0.3137
+    accepted a Newton iterate 3e-3 from the root (the stall rule took slow convergence below 1e-4
+    for rounding). The root, by scipy's fsolve on the double kernel's rhs (x1 = x0 + h f((x0 + x1)
+    / 2), 1e-14): the float step must land within its tolerance of it, or fail."""
+    from scipy.optimize import fsolve
+
+    from lagcodegen import catalog
+    from lagcodegen.run.simulate import make_rhs
+
+    x0 = np.array([-1.41396164894104, -1.2700320482254028, -7.24111795425415, 4.337000370025635])
+    h = 0.3137231767177582
+    rhs = make_rhs(compile_model(catalog.double_pendulum(), methods=("rk4",), cache_dir=tmp_path))
+    root = fsolve(lambda x1: x1 - x0 - h * rhs(0.0, (x0 + x1) / 2), x0, xtol=1e-14)
+    assert np.abs(root - x0 - h * rhs(0.0, (x0 + root) / 2)).max() < 1e-11
+    single = compile_model(catalog.double_pendulum(), methods=("implicit_midpoint",), precision="float",
+                           cache_dir=tmp_path)
+    run = simulate(single, x0, t_end=h, h=h, method="implicit_midpoint", check_stability=False)
+    if run.ok:
+        assert np.abs(run.x[-1] - root).max() < 1e-4 * (1 + np.abs(root).max()), (run.x[-1], root)
+    else:
+        assert run.status == Status.NEWTON_FAILED

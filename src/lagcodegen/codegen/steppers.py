@@ -13,9 +13,11 @@ from .csyntax import record as _record
 #: simplified-Newton stopping rule of the implicit steppers: max |dW| / (1 + |x|) per precision
 NEWTON_TOLERANCE = {"double": 1e-13, "float": 1e-5}
 #: a Newton increment that no longer shrinks (ratio >= NEWTON_STALL to the previous one) and is below
-#: NEWTON_FLOOR has reached the rounding of f: accepted (a stiff spring's stays above the tolerance)
+#: NEWTON_FLOOR has reached the rounding of f: accepted (a stiff spring's stays above the tolerance).
+#: Not in float, whose tolerance is already 84 eps: there a stall above it was as often an iteration
+#: that converges slowly or not at all (a review found errors of 3e-3 accepted at a floor of 1e-4)
 NEWTON_STALL = 0.9
-NEWTON_FLOOR = {"double": 1e-9, "float": 1e-4}
+NEWTON_FLOOR = {"double": 1e-9, "float": NEWTON_TOLERANCE["float"]}
 NEWTON_MAX_ITERATIONS = 30
 
 #: The drivers' singularity monitor (``<prefix>_gauge_check`` in templates/steppers.c.j2) reads the
