@@ -91,6 +91,7 @@ class ReducedSystem:
     dependent_coordinates: tuple = ()
     formulation: str = ""
     recursive: bool = False
+    angle_coordinates: tuple = ()  # a recursive tree's: coordinate j moves revolute joints only
 
     def kernel(self, name: str) -> ReducedKernel:
         for k in self.kernels:
@@ -141,7 +142,8 @@ def reduce_expressions(eom: EquationsOfMotion, outputs=DEFAULT_OUTPUTS,
         outputs=tuple(outputs), kernels=tuple(kernels), kinematics_identity=kinematics_identity,
         ops_saved_by_fixing=int(saved), n_constraints=0 if eom.n_dependent else eom.m, inputs=tuple(eom.inputs),
         measurements=tuple(name for name, _ in eom.measurements) if "measurements" in outputs else (),
-        formulation=eom.formulation, recursive=eom.tree is not None)
+        formulation=eom.formulation, recursive=eom.tree is not None,
+        angle_coordinates=tuple(eom.tree.angles) if eom.tree is not None else ())
 
 
 def _checked_fixed(eom: EquationsOfMotion, fixed: Mapping) -> tuple:

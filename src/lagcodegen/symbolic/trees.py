@@ -73,6 +73,9 @@ class TreeKernels:
     energy : Expr
         T + V.
     points : tuple of (name, (x, y, z))
+    angles : tuple of bool, (n,)
+        Coordinate j moves revolute joints only: the dynamics vary with it on a scale of a radian
+        whatever its value (the difference Jacobian's step, `outputs._difference_jacobian_c`).
     """
 
     assignments: tuple
@@ -80,6 +83,7 @@ class TreeKernels:
     pivots: tuple
     energy: object
     points: tuple
+    angles: tuple = ()
 
 
 @dataclass(frozen=True)
@@ -410,8 +414,9 @@ def derive_recursive(model: Model, choice: FormulationChoice | None = None) -> E
     accelerations = tuple(rec.bind(e, f"qdd_{j}") for j, e in enumerate(_solve(P, theta_dd)))
 
     energy, points = _energy_and_points(model, links, parent, joints, v, gravity, V, rec, to_plain)
+    angles = tuple(all(links[i].joint == "revolute" for i in range(n) if P[i, j] != 0) for j in range(n))
     kernels = TreeKernels(assignments=tuple(rec.assignments), accelerations=accelerations, pivots=tuple(D),
-                          energy=energy, points=points)
+                          energy=energy, points=points, angles=angles)
     eom = assemble(model, coords, speeds, q, u, None, None, sp.ImmutableMatrix(u), None, None, to_plain,
                    inputs_checked=True, positions={})
     choice = choice or choose_formulation(model)
