@@ -75,6 +75,19 @@ def test_numeric_fixed_values_of_any_kind_are_accepted(pendulum, value, expected
     assert pipeline._checked_fixed(pendulum, {sp.Symbol("g", positive=True): value}) == {"g": expected}
 
 
+def test_a_fixed_value_that_leaves_an_entry_undefined_is_named(fresh_cache):
+    """Found by review: V = k x^2 log(L) with L fixed at 0 failed in the C printer, naming only F[0]
+    ("zoo is not supported"), not the fixed value that made it."""
+    import sympy.physics.mechanics as me
+
+    x = me.dynamicsymbols("x")
+    m, k, length = sp.symbols("m k L", positive=True)
+    model = Model("log_spring", [x], [m, k, length], kinetic_energy=m * x.diff() ** 2 / 2,
+                  potential_energy=k * x ** 2 * sp.log(length), parameter_values={m: 1.0, k: 1.0, length: 2.0})
+    with pytest.raises(KernelError, match=r"with L = 0\.0 folded in, F\[0\] is undefined \(zoo\)"):
+        compile_model(model, methods=("rk4",), fixed={"L": 0.0})
+
+
 def test_one_output_or_method_given_as_a_string_is_that_one(pendulum, fresh_cache):
     """Found by review: outputs="rhs" read as the outputs 'r', 'h', 's' ("unknown output 'r'")."""
     one = compile_model(pendulum, outputs="rhs", methods="rk4")

@@ -127,6 +127,7 @@ def reduce_expressions(eom: EquationsOfMotion, outputs=DEFAULT_OUTPUTS,
         raw = [expr for _, expr in labelled]
         folded = [expr.xreplace(folding) if folding else expr for expr in raw]
         if folding:
+            _check_folded(eom, labelled, raw, folded, fixed_values)
             saved += count_operations(raw) - count_operations(folded)
         kernels.append(_reduce(name, [label for label, _ in labelled], folded))
     independent = eom.n_u - eom.n_dependent
@@ -144,6 +145,18 @@ def reduce_expressions(eom: EquationsOfMotion, outputs=DEFAULT_OUTPUTS,
         measurements=tuple(name for name, _ in eom.measurements) if "measurements" in outputs else (),
         formulation=eom.formulation, recursive=eom.tree is not None,
         angle_coordinates=tuple(eom.tree.angles) if eom.tree is not None else ())
+
+
+def _check_folded(eom: EquationsOfMotion, labelled, raw, folded, fixed_values) -> None:
+    """A KernelError naming the fixed values when folding them leaves an entry undefined (zoo or nan:
+    log(L) at L = 0, 1 / k at k = 0), where the C printer would have named only the entry."""
+    for (label, _), before, after in zip(labelled, raw, folded):
+        undefined = [a for a in (sp.zoo, sp.nan, sp.oo, -sp.oo) if after.has(a) and not before.has(a)]
+        if undefined:
+            values = ", ".join(f"{p.name} = {v!r}" for p, v in fixed_values)
+            entry = f"{label[1]}" + (f", {label[2]}" if len(label) > 2 and label[2] != 0 else "")
+            raise KernelError(f"model {eom.name!r}: with {values} folded in, {label[0]}[{entry}] is undefined "
+                              f"({undefined[0]}); fix those parameters to other values, or leave them free")
 
 
 def _checked_fixed(eom: EquationsOfMotion, fixed: Mapping) -> tuple:
