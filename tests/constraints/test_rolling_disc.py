@@ -115,6 +115,33 @@ def test_consistent_initial_speeds_and_a_named_violation():
         consistent_state(eom, {"x": 0, "y": 0, "psi": 0.3, "theta": 0.1, "phi": 0}, {"phi": 2.0, "x": 0.0, "y": 0.0})
 
 
+def test_speeds_given_by_coordinate_name_land_on_that_coordinates_rate_in_either_formulation(tmp_path):
+    """Found by review: with formulation="elimination" the speeds are reordered (dependent rates
+    last) and a speed given by its coordinate's name was put at that coordinate's position: {"phi":
+    2.0} set y' = 2. The expected values are the test above's, by hand. And a run started off the
+    rolling constraints warns: it keeps the slip all run."""
+    import warnings
+
+    from lagcodegen.run.drift import ConstraintDriftWarning
+    from lagcodegen.statics.consistent import consistent_state
+
+    x, y = me.dynamicsymbols("x y")
+    start = {"x": 0, "y": 0, "psi": 0.3, "theta": 0.1, "phi": 0}
+    eom = derive_equations(rolling_disc(formulation="elimination", dependent_speeds=[x, y]))
+    q0, u0 = consistent_state(eom, start, {"phi": 2.0, "theta": 0.01, "psi": 0.0})
+    speeds = dict(zip((s.name for s in eom.u), u0))
+    assert speeds == pytest.approx({"x_d": 2 * np.cos(0.3), "y_d": 2 * np.sin(0.3), "psi_d": 0.0, "theta_d": 0.01,
+                                    "phi_d": 2.0}, abs=1e-14)
+    multipliers = compile_model(rolling_disc(), methods=("rk4",), cache_dir=tmp_path)
+    slipping = [0, 0, 0.3, 0.1, 0, 0.5, 0.0, 0.0, 0.0, 2.0]  # x' = 0.5, where r cos(psi) phi' = 1.91
+    with pytest.warns(ConstraintDriftWarning, match="started off the constraints on the velocities"):
+        simulate(multipliers, slipping, t_end=0.01, h=1e-3)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ConstraintDriftWarning)
+        simulate(multipliers, list(q0) + [speeds[f"{name}_d"] for name in ("x", "y", "psi", "theta", "phi")],
+                 t_end=0.01, h=1e-3)
+
+
 def test_dependent_velocity_constraints_stop_with_a_status(tmp_path):
     """The same rolling constraint twice: A loses rank, the run stops at once with SINGULAR_CONSTRAINTS."""
     import warnings

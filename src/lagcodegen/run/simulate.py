@@ -348,7 +348,7 @@ def check_start(system: CompiledSystem, x: np.ndarray, p: np.ndarray, t0: float)
 
 
 def start_offsets(system: CompiledSystem, x: np.ndarray, p: np.ndarray, t0: float) -> float | None:
-    """max |phi| of the constraints with multipliers at x (None without them)."""
+    """max |phi| and |A u + dphi/dt| of the constraints with multipliers at x (None without them)."""
     layout = system.layout
     m = layout.n_constraints
     if not m or f"{layout.prefix}_residuals" not in layout.functions:
@@ -357,7 +357,7 @@ def start_offsets(system: CompiledSystem, x: np.ndarray, p: np.ndarray, t0: floa
     residuals = getattr(system.lib, f"{layout.prefix}_residuals")
     residuals(t0, c_pointer(system, np.ascontiguousarray(x)), c_pointer(system, np.ascontiguousarray(p)),
               c_pointer(system, out))
-    return float(np.max(np.abs(out[:m])))
+    return float(np.max(np.abs(out)))
 
 
 def _check_configuration(system: CompiledSystem, x: np.ndarray, p: np.ndarray, t0: float) -> None:

@@ -146,10 +146,10 @@ def check_member_starts(system: CompiledSystem, xs, ps, t0: float, columns, valu
             off.append((i, offset))
     if off:
         worst = max(off, key=lambda item: item[1] if item[1] == item[1] else np.inf)
-        warnings.warn(f"{len(off)} member(s) start off the constraints of model {layout.model!r} (max |phi| > "
-                      f"{tolerance:g}), e.g. member {worst[0]} ({_member_text(columns, values[worst[0]])}) with "
-                      f"|phi| = {worst[1]:.3g}: start each member on its constraints", ConstraintDriftWarning,
-                      stacklevel=3)
+        warnings.warn(f"{len(off)} member(s) start off the constraints of model {layout.model!r} (max |phi| or "
+                      f"|A u + dphi/dt| > {tolerance:g}), e.g. member {worst[0]} "
+                      f"({_member_text(columns, values[worst[0]])}) with {worst[1]:.3g}: start each member on its "
+                      "constraints", ConstraintDriftWarning, stacklevel=3)
 
 
 def _member_text(columns, row) -> str:

@@ -33,6 +33,7 @@ from typing import Any
 import numpy as np
 import scipy.optimize
 import sympy as sp
+from sympy.core.function import AppliedUndef
 
 from ..symbolic.derive import EquationsOfMotion
 from .equilibria import coordinate_point, resolve_values, substitute_values
@@ -153,15 +154,23 @@ def _given(eom: EquationsOfMotion, given: Any, fix: Sequence | None, symbols: li
 
 
 def _name_index(eom: EquationsOfMotion, symbols: list) -> dict:
-    """Names (and, for speeds, the coordinate names too) -> index."""
+    """Names (and, for speeds, the names of the coordinates whose rate a speed is) -> index. By the
+    kinematics qd_i = u_k, not by position: the elimination formulation puts the dependent rates
+    last (a review found {"psi": 0.5} set phi_d in a rolling disc, status OK)."""
     index = {s.name: i for i, s in enumerate(symbols)}
     if symbols == list(eom.u):
-        index.update({qi.name: i for i, qi in enumerate(eom.q) if qi.name not in index})
+        speeds = {u: k for k, u in enumerate(eom.u)}
+        for qi, rate in zip(eom.q, eom.kinematics):
+            if rate in speeds and qi.name not in index:
+                index[qi.name] = speeds[rate]
     return index
 
 
 def _lookup(eom: EquationsOfMotion, index: dict, key: Any, kind: str) -> int:
-    name = key.name if isinstance(key, sp.Symbol) else str(key)
+    if isinstance(key, AppliedUndef):  # the model's own dynamicsymbol, x(t)
+        name = key.func.__name__
+    else:
+        name = key.name if isinstance(key, sp.Symbol) else str(key)
     if name not in index:
         raise ValueError(f"{key!r} is not a {kind} of model {eom.name!r} "
                          f"({kind}s: {', '.join(index)})")
