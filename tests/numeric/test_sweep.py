@@ -308,6 +308,25 @@ def test_a_member_starting_off_its_constraints_is_named(compiled_example):
         sweep(system, members={"l": [1.0, 2.0], "y": [-1.0, -2.0]}, x0={"x": 0.0}, t_end=0.01, h=1e-3)
 
 
+def test_members_that_drift_off_their_constraints_are_named_as_simulate_warns(compiled_example):
+    # found by review: a sweep kept no residuals and said nothing of members that ended off their
+    # constraints with status OK. The Cartesian pendulum from (1, 0) at rest with RK4 at h = 0.05
+    # over 10 s ends |phi| = 0.044 off (simulate's own residuals, the second route, warn of it);
+    # with h = 1e-3 and projection it stays on.
+    from lagcodegen.run.drift import ConstraintDriftWarning
+
+    system = compiled_example("cartesian_pendulum", outputs=("rhs", "constraints"), methods=("rk4",))
+    with pytest.warns(ConstraintDriftWarning, match="the run drifted off the constraints"):
+        simulate(system, {"x": 1.0, "y": 0.0}, t_end=10.0, h=0.05)
+    with pytest.warns(ConstraintDriftWarning, match=r"1 member\(s\) of model .* drifted off the constraints .* "
+                                                     r"member 0 \(g = 9.81\)"):
+        result = sweep(system, {"g": [9.81]}, x0={"x": 1.0, "y": 0.0}, t_end=10.0, h=0.05)
+    assert result.status[0] == Status.OK
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ConstraintDriftWarning)
+        sweep(system, {"g": [9.81]}, x0={"x": 1.0, "y": 0.0}, t_end=1.0, h=1e-3, project=True)
+
+
 def test_a_swept_value_beyond_the_float_range_is_named(compiled_example):
     # found by review: 1e39 became inf in the float kernel and the member failed as a singular mass matrix
     system = compiled_example("double_pendulum", precision="float", outputs=("rhs",), methods=("rk4",))

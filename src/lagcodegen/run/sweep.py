@@ -44,6 +44,7 @@ from .simulate import c_pointer, compiled_method, real_dtype, work_size
 from .sweep_members import (  # noqa: F401
     cartesian_members,
     cartesian_product,
+    check_member_ends,
     check_member_starts,
     column_values,
     grid_axes,
@@ -230,6 +231,7 @@ def sweep(system: CompiledSystem, grid: Mapping | None = None, *, members: Mappi
         _check_sweep_size(layout, len(values), len(columns), n_steps, stride, trajectories, max_output_bytes)
     xs, ps = member_arrays(system, columns, values, x0, params)
     check_member_starts(system, xs, ps, t0, columns, values)
+    checked, member_parameters = system, ps
     ramp = hold_code(hold)
     tables = member_input_tables(system, columns, values, inputs, member_inputs, t0, h, n_steps, stride, hold)
     held = tables is not None and tables[0].shape[1] == 1  # every member's inputs constant in time
@@ -253,6 +255,9 @@ def sweep(system: CompiledSystem, grid: Mapping | None = None, *, members: Mappi
     run = _run_dask if client is not None else _run_threads
     completed, errors = run(job, xs, ps, out, chunks, threads if client is None else client, progress)
     _mark_failed(out, errors)
+    if not project:
+        check_member_ends(checked, out["x_final"], member_parameters, t0 + n_steps * h, out["status"], columns,
+                          values)
     return _result(job, columns, values, axes, out, completed and not errors, errors)
 
 
