@@ -309,3 +309,14 @@ def test_a_symbol_only_in_kanes_configuration_constraints_is_named():
                            [(P, -m * g * N.y) for P in (P1, P2, P3)])
     with pytest.raises(ModelError, match="configuration constraint 0 uses symbols not declared as parameters: l4"):
         derive_equations(Model("four_bar", parameters=[l1, l2, l3, m, g], sympy_model=method))
+
+
+def test_a_constraint_with_a_kink_is_named():
+    """Found by review: constraints=[Abs(x) + y - l] failed in the C printer ("cannot print gamma[0]:
+    function DiracDelta"), not naming the constraint. d^2|x|/dx^2 = 2 DiracDelta(x) (by hand)."""
+    x, y = me.dynamicsymbols("x y")
+    m, g, length = sp.symbols("m g l", positive=True)
+    model = Model("kinked", [x, y], [m, g, length], kinetic_energy=m * (x.diff() ** 2 + y.diff() ** 2) / 2,
+                  potential_energy=m * g * y, constraints=[sp.Abs(x) + y - length])
+    with pytest.raises(ModelError, match=r"constraint 0 \(-l \+ y \+ Abs\(x\)\) is not smooth: .* DiracDelta\(x\)"):
+        derive_equations(model)

@@ -282,6 +282,20 @@ def dependent_last(coords, u, speeds, M, F, dependent) -> tuple:
             F.extract(order, [0]))
 
 
+def _check_smooth(model, rows, gamma, n_holonomic: int) -> None:
+    """A ModelError naming the constraint whose derivatives hold a delta or step function (Abs(x)
+    or sign(x) in it): A ud = gamma needs it differentiable twice (holonomic) or once (on the
+    velocities); before, the C printer refused 'DiracDelta' in gamma without naming the constraint."""
+    for i, (row, bias) in enumerate(zip(rows, gamma)):
+        kinks = bias.atoms(sp.DiracDelta, sp.Heaviside)
+        if kinks:
+            kind = "constraint" if i < n_holonomic else "motion constraint"
+            index = i if i < n_holonomic else i - n_holonomic
+            raise ModelError(f"model {model.name!r}: {kind} {index} ({row}) is not smooth: its derivative along "
+                             f"the motion holds {sorted(map(str, kinks))[0]} (from Abs, sign or a step in it); "
+                             "write it without the kink, e.g. one constraint per side")
+
+
 def _check_dependent_block(model, A, u, m: int) -> None:
     """A_D, the last m columns of A (the dependent speeds), must not be singular everywhere: a speed
     no constraint involves, or a constraint involving none of them, is named."""
@@ -363,6 +377,7 @@ def assemble(model, coords, speeds, q, u, M, F, K, T, V, to_plain, inputs_checke
                 sp.Matrix(to_plain(sp.Matrix(motion_rates), "acceleration constraints"))
             blocks.append(motion_terms(w, q, u, TIME, K, rates=rates))
         stack = lambda key: sp.ImmutableMatrix(sp.Matrix.vstack(*[sp.Matrix(b[key]) for b in blocks]))  # noqa: E731
+        _check_smooth(model, [*phi, *w], stack("gamma"), phi.rows)
         constrained = {"constraints": stack("phi"), "constraint_jacobian": stack("A"),
                        "constraint_rate": stack("phi_t"), "constraint_bias": stack("gamma"),
                        "n_holonomic": phi.rows}
