@@ -124,9 +124,7 @@ def check_member_starts(system: CompiledSystem, xs, ps, t0: float, columns, valu
     naming the first member that cannot start; and a `ConstraintDriftWarning` naming the members
     that start off constraints with multipliers by more than the drift tolerance (simulate warns of
     the same through its residuals)."""
-    import warnings
-
-    from .drift import DRIFT_TOLERANCE, ConstraintDriftWarning
+    from .drift import DRIFT_TOLERANCE
     from .simulate import check_start, start_offsets
 
     layout = system.layout
@@ -144,12 +142,8 @@ def check_member_starts(system: CompiledSystem, xs, ps, t0: float, columns, valu
         offset = start_offsets(system, x, p[:n_p], t0)
         if offset is not None and not offset <= tolerance:
             off.append((i, offset))
-    if off:
-        worst = max(off, key=lambda item: item[1] if item[1] == item[1] else np.inf)
-        warnings.warn(f"{len(off)} member(s) start off the constraints of model {layout.model!r} (max |phi| or "
-                      f"|A u + dphi/dt| > {tolerance:g}), e.g. member {worst[0]} "
-                      f"({_member_text(columns, values[worst[0]])}) with {worst[1]:.3g}: start each member on its "
-                      "constraints", ConstraintDriftWarning, stacklevel=3)
+    _warn_off(off, f"start off the constraints of model {layout.model!r} (max |phi| or |A u + dphi/dt| > "
+                   f"{tolerance:g})", "start each member on its constraints", columns, values)
 
 
 def check_member_ends(system: CompiledSystem, x_final, ps, t_end: float, status, columns, values) -> None:
@@ -157,9 +151,7 @@ def check_member_ends(system: CompiledSystem, x_final, ps, t_end: float, status,
     multipliers by more than the drift tolerance (a sweep keeps no residuals: its members' drift
     went unseen where simulate warns; found by review, a pendulum in Cartesian coordinates ended
     2 % short of its rod with status OK)."""
-    import warnings
-
-    from .drift import DRIFT_TOLERANCE, ConstraintDriftWarning
+    from .drift import DRIFT_TOLERANCE
     from .simulate import Status, start_offsets
 
     layout = system.layout
@@ -172,12 +164,21 @@ def check_member_ends(system: CompiledSystem, x_final, ps, t_end: float, status,
             offset = start_offsets(system, np.ascontiguousarray(x), np.ascontiguousarray(p[:n_p]), t_end)
             if offset is not None and not offset <= tolerance:
                 off.append((i, offset))
+    _warn_off(off, f"of model {layout.model!r} drifted off the constraints (max |phi| or |A u + dphi/dt| > "
+                   f"{tolerance:g} at the end)", "sweep with project=True or a smaller h", columns, values)
+
+
+def _warn_off(off: list, what: str, advice: str, columns, values) -> None:
+    """One `ConstraintDriftWarning` for the members (index, offset) in ``off``, naming the worst."""
+    import warnings
+
+    from .drift import ConstraintDriftWarning
+
     if off:
         worst = max(off, key=lambda item: item[1] if item[1] == item[1] else np.inf)
-        warnings.warn(f"{len(off)} member(s) of model {layout.model!r} drifted off the constraints (max |phi| or "
-                      f"|A u + dphi/dt| > {tolerance:g} at the end), e.g. member {worst[0]} "
-                      f"({_member_text(columns, values[worst[0]])}) with {worst[1]:.3g}: sweep with project=True "
-                      "or a smaller h", ConstraintDriftWarning, stacklevel=3)
+        example = _member_text(columns, values[worst[0]])
+        warnings.warn(f"{len(off)} member(s) {what}, e.g. member {worst[0]} ({example}) with {worst[1]:.3g}: {advice}",
+                      ConstraintDriftWarning, stacklevel=4)
 
 
 def _member_text(columns, row) -> str:
