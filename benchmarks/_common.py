@@ -39,6 +39,19 @@ def best_seconds(fn, repeat: int) -> float:
     return best
 
 
+def best_seconds_interleaved(fns, repeat: int) -> list:
+    """`best_seconds` of each of ``fns``, their calls taken in turn (a, b, a, b, ...): a ratio of
+    two best times then compares runs under the same load of the shared machine, where measuring
+    one side's repeats before the other's can put a busy spell on either side."""
+    best = [float("inf")] * len(fns)
+    for _ in range(repeat):
+        for i, fn in enumerate(fns):
+            start = time.perf_counter()
+            fn()
+            best[i] = min(best[i], time.perf_counter() - start)
+    return best
+
+
 def per_call_seconds(fn, repeat: int, target: float = 0.05) -> float:
     """Best time per call of ``fn(number)`` (which makes ``number`` calls), ``number`` grown
     until one run lasts ``target`` seconds."""

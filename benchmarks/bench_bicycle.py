@@ -10,10 +10,12 @@ In one fresh worker: sympy forms the KanesMethod (the test function is run until
 - PyDy's ``generate_ode_function(forcing, q, u, constants, mass_matrix=mass_matrix,
   coordinate_derivatives=<kindiffdict>, generator="cython")`` (its code generation and Cython
   compile; Kane's M and F of every speed, the dependent ones' rows from the constraints);
-- ns per RK4 step (h = 1e-3) from the same consistent state: ours is ``simulate``'s loop in C
-  (best of ``--bicycle-repeat``, default 3); PyDy has no integrator, so its step is the classic
+- ns per RK4 step (h = 1e-3) from the same consistent state: ours is ``simulate``'s loop in C;
+  PyDy has no integrator, so its step is the classic
   RK4 in Python around its compiled rhs (four calls and the numpy updates, what a PyDy user runs),
-  and also reported: four bare calls of its rhs, the floor of any Python stepping loop.
+  and also reported: four bare calls of its rhs, the floor of any Python stepping loop. Each side's
+  time is its best of ``--bicycle-repeat`` runs (default 7), the two sides' runs taken in turn, so
+  that both bests come from the same spells of the shared machine.
 
 Goals (issue 14): RK4 step >= 50x faster than PyDy's; our cold pipeline faster than PyDy's
 generate + compile.
@@ -84,7 +86,7 @@ def upright_state(kane, system, values: dict):
 
 
 def add_arguments(group) -> None:
-    group.add_argument("--bicycle-repeat", type=int, default=3, metavar="R", help="best of R runs (default 3)")
+    group.add_argument("--bicycle-repeat", type=int, default=7, metavar="R", help="best of R runs (default 7)")
 
 
 def worker_measure(quick: str, repeat: str) -> None:
@@ -92,7 +94,7 @@ def worker_measure(quick: str, repeat: str) -> None:
 
     import numpy as np
     import sympy as sp
-    from _common import best_seconds, per_call_seconds
+    from _common import best_seconds_interleaved, per_call_seconds
     from pydy.codegen.ode_function_generators import generate_ode_function
 
     from lagcodegen import Model
@@ -132,9 +134,6 @@ def worker_measure(quick: str, repeat: str) -> None:
         run = simulate(system, ours_x0, t_end=steps * 1e-3, h=1e-3, params=params, stride=steps)
         if not run.ok:  # a run that stops early would time nothing
             raise RuntimeError(f"the bicycle run stopped: {run.message}")
-        seconds = best_seconds(lambda: simulate(system, ours_x0, t_end=steps * 1e-3, h=1e-3, params=params,
-                                                stride=steps, check_stability=False), repeat)
-        ours_ns = seconds / steps * 1e9
 
         p = parameter_vector(system, params)
         p_pydy = np.array([values[c] for c in constants])
@@ -152,7 +151,11 @@ def worker_measure(quick: str, repeat: str) -> None:
             return x
 
         pydy_steps = max(200, steps // 10)
-        pydy_ns = best_seconds(lambda: pydy_rk4(pydy_steps), repeat) / pydy_steps * 1e9
+        ours_s, pydy_s = best_seconds_interleaved(
+            [lambda: simulate(system, ours_x0, t_end=steps * 1e-3, h=1e-3, params=params, stride=steps,
+                              check_stability=False),
+             lambda: pydy_rk4(pydy_steps)], repeat)
+        ours_ns, pydy_ns = ours_s / steps * 1e9, pydy_s / pydy_steps * 1e9
         def calls(number: int) -> None:
             for _ in range(number):
                 pydy_rhs(full_x0, 0.0, p_pydy)
