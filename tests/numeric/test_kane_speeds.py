@@ -18,6 +18,7 @@ import sympy.physics.mechanics as me
 from scipy.integrate import solve_ivp
 
 from lagcodegen import Model, derive_equations
+from lagcodegen.model import ModelError
 from lagcodegen.pipeline import compile_model
 from lagcodegen.run.simulate import c_pointer, dependent_speeds, parameter_vector, simulate, step_jacobians
 from lagcodegen.run.sweep import sweep
@@ -369,6 +370,48 @@ def test_a_disc_rolling_upright_and_straight_is_held_up_by_its_weight(disc_with_
     Fx, Fy, Fz = reactions(system, state, values)
     assert abs(Fx) < 1e-12 and abs(Fy) < 1e-12
     assert abs(abs(Fz) - values["m"] * values["g"]) < 1e-12
+
+
+def test_reactions_of_a_build_without_them_name_the_output(disc_with_contact_forces):
+    """Found by review: the disc built with outputs=("rhs",) answered reactions() with "has no
+    reactions", though its KanesMethod has them."""
+    from lagcodegen.run.simulate import reactions
+
+    kane, parameters = disc_with_contact_forces
+    system = compile_model(Model("disc_rhs_only", parameters=parameters, sympy_model=kane), outputs=("rhs",),
+                           methods=["rk4"])
+    with pytest.raises(ValueError, match=r"compiled without reactions.*outputs=\(\.\.\., 'reactions'\)"):
+        reactions(system, np.zeros(len(system.layout.coordinates) + len(system.layout.speeds)),
+                  {p.name: 1.0 for p in parameters})
+
+
+def test_an_undeclared_parameter_among_the_reactions_is_named():
+    """Found by review: g left out of parameters=[...] but in the auxiliary equations was counted as an
+    unknown force ("hold 3 unknown forces (fy, fz, g)"), which said nothing of the missing declaration."""
+    N = me.ReferenceFrame("N")
+    O = me.Point("O")
+    O.set_vel(N, 0)
+    m, k, g = sp.symbols("m k g", positive=True)
+    q1, u1, ua, ub = me.dynamicsymbols("q1 u1 ua ub")
+    fy, fz = me.dynamicsymbols("fy fz")
+    P = O.locatenew("P", q1 * N.x)
+    P.set_vel(N, u1 * N.x + ua * N.y + ub * N.z)
+    kane = me.KanesMethod(N, [q1], [u1], kd_eqs=[q1.diff() - u1], u_auxiliary=[ua, ub])
+    kane.kanes_equations([me.Particle("p", P, m)], [(P, -k * q1 * N.x - m * g * N.y + fy * N.y + fz * N.z)])
+    with pytest.raises(ModelError, match=r"unknown forces \(fy, fz, g\).*declare a parameter"):
+        derive_equations(Model("forgot_g", parameters=[m, k], sympy_model=kane))
+
+
+def test_a_coordinate_named_like_another_ones_speed_is_named_with_both_roles():
+    """Found by review: coordinates q and q_d (Lagrange names q's speed q_d) were refused with "used by a
+    coordinate or speed and by a coordinate or speed"."""
+    q, q_d = me.dynamicsymbols("q q_d")
+    m, k = sp.symbols("m k", positive=True)
+    lagrangian = m * (q.diff() ** 2 + q_d.diff() ** 2) / 2 - k * (q ** 2 + q_d ** 2) / 2
+    method = me.LagrangesMethod(lagrangian, [q, q_d])
+    method.form_lagranges_equations()
+    with pytest.raises(ModelError, match=r"'q_d' is used by coordinate q_d and by the speed of coordinate q"):
+        derive_equations(Model("clash", parameters=[m, k], sympy_model=method))
 
 
 def test_the_unit_norm_as_a_configuration_constraint_is_kept_by_projection():

@@ -669,8 +669,9 @@ def reactions(system: CompiledSystem, x, params: Mapping | None = None, t=0.0, r
     with the inputs ``r`` ((n_r,) or (k, n_r)) of a driven model: (n_R,) or (k, n_R)."""
     names = system.layout.reactions
     if not names:
-        raise ValueError(f"model {system.layout.model!r} has no reactions: they come from a KanesMethod with "
-                         "auxiliary speeds and the unknown forces applied where they act")
+        raise ValueError(f"model {system.layout.model!r} was compiled without reactions: they need the 'reactions' "
+                         "output (compile_model(..., outputs=(..., 'reactions'))) and a KanesMethod with auxiliary "
+                         "speeds, the unknown forces applied where they act")
     return _per_state(system, "reactions", names, x, params, t, r)
 
 

@@ -199,12 +199,14 @@ def plain_symbols(coordinates, speeds, parameters) -> tuple[tuple, tuple]:
     q = tuple(sp.Symbol(c.func.__name__, real=True) for c in coordinates)
     u = tuple(sp.Symbol(s.func.__name__ if isinstance(s, AppliedUndef) else s.expr.func.__name__ + "_d", real=True)
               for s in speeds)
-    taken = {p.name: "parameter" for p in parameters} | {TIME.name: "the time symbol"}
-    for sym in q + u:
+    taken = {p.name: "a parameter" for p in parameters} | {TIME.name: "the time symbol"}
+    roles = [f"coordinate {c.func.__name__}" for c in coordinates] + \
+        [f"speed {s.func.__name__}" if isinstance(s, AppliedUndef)
+         else f"the speed of coordinate {s.expr.func.__name__} (named <coordinate>_d)" for s in speeds]
+    for sym, role in zip(q + u, roles):
         if sym.name in taken:
-            owner = taken[sym.name] if sym.name == TIME.name else f"a {taken[sym.name]}"
-            raise ModelError(f"name {sym.name!r} is used by {owner} and by a coordinate or speed; rename it")
-        taken[sym.name] = "coordinate or speed"
+            raise ModelError(f"name {sym.name!r} is used by {taken[sym.name]} and by {role}; rename it")
+        taken[sym.name] = role
     return q, u
 
 

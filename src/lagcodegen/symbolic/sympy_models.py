@@ -145,8 +145,10 @@ def _with_reactions(eom, model: Model, equations, coords, speeds, auxiliary, to_
         return eom
     if len(unknowns) != rows.rows:
         raise ModelError(f"model {model.name!r}: Kane's {rows.rows} auxiliary equations hold {len(unknowns)} unknown "
-                         f"forces ({', '.join(map(str, unknowns))}); the reactions need as many equations as "
-                         "unknowns (one auxiliary speed per force component)")
+                         f"forces ({', '.join(map(str, unknowns))}): every symbol there that is not a declared "
+                         "parameter, input, coordinate or speed is taken for one (declare a parameter that is among "
+                         "them in Model(..., parameters=[...])); the reactions need as many equations as unknowns "
+                         "(one auxiliary speed per force component)")
     for i, row in enumerate(rows):
         for force in unknowns:
             if row.diff(force).has(*unknowns):
