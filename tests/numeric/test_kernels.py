@@ -23,6 +23,7 @@ import pytest
 import sympy as sp
 
 from lagcodegen import catalog, derive_equations
+from lagcodegen.codegen.csyntax import EmitError
 from lagcodegen.codegen.outputs import KernelError
 from lagcodegen.codegen.reduce import reduce_expressions
 from lagcodegen.codegen.render import render_sources
@@ -313,6 +314,54 @@ def test_every_parameter_folded_gives_the_30_digit_numbers(compiled_example, exa
     for t, x, _ in random_inputs(eom, rng):
         got = compiled_outputs(folded, t, x, [])
         assert_close(got, sympy_reference(eom, t, x, p), RTOL["double"], f"{name} folded at x={x}")
+
+
+@pytest.mark.compiler
+def test_a_number_like_pi_folds_with_any_parameter_fixed(tmp_path):
+    """Found by review of the fold: V = 2 pi^2 k x^2 with m or k fixed was refused ("its term pi**2 of
+    fixed parameters only is pi**2"). By hand: M = m, F = -4 pi^2 k x, so ud = -4 pi^2 k x / m."""
+    import sympy.physics.mechanics as me
+
+    from lagcodegen.pipeline import compile_model
+
+    x = me.dynamicsymbols("x")
+    m, k = sp.symbols("m k", positive=True)
+    model = Model("pi_spring", [x], [m, k], kinetic_energy=m * x.diff() ** 2 / 2,
+                  potential_energy=2 * sp.pi ** 2 * k * x ** 2, parameter_values={m: 1.0, k: 4.0})
+    for fixed, free in (({"m": 2.0}, {"k": 3.5}), ({"k": 3.5}, {"m": 2.0}), ({"m": 2.0, "k": 3.5}, {})):
+        system = compile_model(model, outputs=("rhs",), fixed=fixed, cache_dir=tmp_path)
+        got = compiled_outputs(system, 0.0, [0.7, -0.2], [free[name] for name in system.layout.parameters])
+        assert got["rhs"] == pytest.approx([-0.2, -4 * np.pi ** 2 * 3.5 * 0.7 / 2.0], rel=1e-14), fixed
+
+
+@pytest.mark.compiler
+def test_a_parameter_fixed_at_one_inside_a_sine_folds(compiled_example, example_eom, rng):
+    """Found by review of the fold: rolling_wheels with beta = 1.0 (fixed exactly to 1 before CSE) and
+    g fixed was refused ("its term sin(1) ..."). Against sympy at 30 digits with the same values."""
+    eom = example_eom("rolling_wheels")
+    fixed = {"beta": 1.0, "g": 9.81}
+    system = compiled_example("rolling_wheels", "double", fixed=fixed)
+    names = [s.name for s in eom.parameters]
+    for t, x, p in random_inputs(eom, rng):
+        p = p.copy()
+        for name, value in fixed.items():
+            p[names.index(name)] = value
+        free = [v for name, v in zip(names, p) if name not in fixed]
+        assert_close(compiled_outputs(system, t, x, free), sympy_reference(eom, t, x, p), RTOL["double"],
+                     f"rolling_wheels {fixed} at x={x}")
+
+
+@pytest.mark.parametrize("precision, fixed, message", [
+    ("float", {"l1": 1e-150}, r"cannot print l1: literal .* is too small for float: it would be 0"),
+    ("double", {"m2": 1e-200, "l2": 1e-200}, r"literal .*E-401 is too small for double: it would be 0"),
+    ("double", {"m2": 1e200, "l2": 1e200}, r"literal .*E\+399 is out of range for double"),
+])
+def test_a_folded_literal_beyond_the_c_type_is_named(example_eom, precision, fixed, message):
+    """Found by review: such literals reached the C text (1.0e-150F, 9.99e-401), where gcc warns
+    "floating constant truncated to zero" and the value is lost; float overflow was refused already."""
+    system = reduce_expressions(example_eom("double_pendulum"), ("rhs",), fixed=fixed)
+    with pytest.raises(EmitError, match=message):
+        render_sources(system, precision)
 
 
 def test_a_fixed_value_that_makes_an_entry_complex_is_named():

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import re
 
+import numpy
 import sympy
 from sympy.codegen.ast import float32, float64, real
 from sympy.core.function import AppliedUndef
@@ -287,8 +288,16 @@ class CPrinter(C99CodePrinter):
         return self._print_Float(sympy.Float(value, 30))
 
     def _print_Float(self, flt):
-        if self.precision == "float" and flt.is_finite and abs(flt) > sympy.Float("3.4028234663852886e38"):
-            raise ValueError(f"literal {flt} is out of range for float")
+        if flt.is_finite and flt != 0:  # a literal the C type rounds to inf or 0: compilers warn, values are lost
+            real = numpy.float32 if self.precision == "float" else numpy.float64
+            with numpy.errstate(over="ignore", under="ignore"):
+                rounded = real(float(flt))
+            if not numpy.isfinite(rounded):
+                raise ValueError(f"literal {flt} is out of range for {self.precision} (from fixed parameter "
+                                 "values? leave them free, or rescale the model's units)")
+            if rounded == 0:
+                raise ValueError(f"literal {flt} is too small for {self.precision}: it would be 0 (from fixed "
+                                 "parameter values? leave them free, or rescale the model's units)")
         return super()._print_Float(flt)
 
     def _print_Integer(self, expr):

@@ -142,10 +142,11 @@ def reduce_expressions(eom: EquationsOfMotion, outputs=DEFAULT_OUTPUTS,
         folded = [expr.xreplace(folding) for expr in raw]
         _check_folded(eom, labelled, raw, folded, fixed_values)
         early = [expr.xreplace(removing) for expr in raw] if removing else raw
-        kernel, saved_late = _reduce(name, labels, early, constants)
+        kernel, saved_late = _reduce(name, labels, early, constants)  # also folds cos(1) of a value 1
         candidates = [(kernel, count_operations(raw) - count_operations(early) + saved_late)]
         if constants:  # numbers folded before CSE can also combine terms: keep whichever is cheaper
-            candidates.insert(0, (_reduce(name, labels, folded)[0], count_operations(raw) - count_operations(folded)))
+            before_cse = _reduce(name, labels, folded, {})[0]
+            candidates.insert(0, (before_cse, count_operations(raw) - count_operations(folded)))
         kernel, kernel_saved = min(candidates, key=lambda pair: pair[0].ops_after)
         kernels.append(kernel)
         saved += kernel_saved
@@ -271,13 +272,17 @@ def _reduce(name: str, labels: list, exprs: list, constants: Mapping | None = No
             replacements, reduced, after = again, again_reduced, again_after
     replacements, reduced = _numbered(replacements, reduced, exprs)
     saved = 0
-    if constants:
+    if constants is not None:
         replacements, reduced = _fold_constants(name, replacements, reduced, constants)
         unfolded, after = after, count_operations([v for _, v in replacements] + list(reduced))
         saved = unfolded - after
     kernel = ReducedKernel(name=name, temporaries=tuple(replacements),
                            results=tuple(zip(labels, reduced)), ops_before=before, ops_after=after)
     return kernel, saved
+
+
+#: digits of the values of folded terms (a double needs 17)
+_DIGITS = 30
 
 
 def _fold_constants(name: str, replacements: list, results: list, constants: Mapping) -> tuple:
@@ -335,8 +340,9 @@ def _fold_constants(name: str, replacements: list, results: list, constants: Map
 
 
 def _constant_value(name: str, expr, values: Mapping):
-    """The number ``expr``, a term of fixed parameters only, is at their ``values``."""
-    value = expr.xreplace(values)
+    """The number ``expr``, a term of fixed parameters and numbers only (pi, sqrt(2), cos(1) for a
+    parameter fixed at 1), is at their ``values``."""
+    value = expr.xreplace(values).evalf(_DIGITS)
     if not (value.is_Number and value.is_finite and value.is_real):
         raise KernelError(f"kernel {name!r}: its term {expr} of fixed parameters only is "
                           f"{value} at their values; fix them to other values, or leave them free")
