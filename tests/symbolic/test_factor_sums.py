@@ -69,6 +69,16 @@ def test_a_sum_that_factoring_exposes_is_shared_by_a_second_cse():
     assert _values(kernel, point) == pytest.approx([complex(0.3 * 2.5), complex(-1.7 * 2.5)], rel=1e-15)
 
 
+def test_no_temporary_only_copies_another():
+    """Found by review: the second round left four_bar's forcing kernel a copy, tmp3 = tmp0; every
+    kernel of the four catalog models below now computes something in each temporary."""
+    for name in ("four_bar", "double_pendulum", "slider_crank", "rolling_wheels"):
+        eom = derive_equations(catalog.EXAMPLES[name]())
+        for output in ("forcing", "rhs"):
+            kernel = reduce_expressions(eom, [output], {}).kernels[0]
+            assert not [symbol for symbol, expr in kernel.temporaries if expr.is_Symbol], (name, output)
+
+
 def _values(kernel, point: dict) -> list:
     known = dict(point)
     for symbol, expr in kernel.temporaries:

@@ -270,7 +270,7 @@ def _reduce(name: str, labels: list, exprs: list, constants: Mapping | None = No
         again_after = count_operations([v for _, v in again] + list(again_reduced))
         if again_after < after:
             replacements, reduced, after = again, again_reduced, again_after
-    replacements, reduced = _numbered(replacements, reduced, exprs)
+    replacements, reduced = _numbered(*_without_copies(replacements, reduced), exprs)
     saved = 0
     if constants is not None:
         replacements, reduced = _fold_constants(name, replacements, reduced, constants)
@@ -382,6 +382,20 @@ def _in_order(definitions: list, results: list) -> list:
                            key=sp.default_sort_key, reverse=True)
             stack.extend((s, False) for s in reads)
     return ordered
+
+
+def _without_copies(replacements: list, results: list) -> tuple:
+    """A temporary that only copies another symbol (tmp3 = tmp0: a second CSE round can leave one
+    when factoring reduced a temporary to another) replaced by that symbol wherever it is read."""
+    copies = {symbol: expr for symbol, expr in replacements if expr.is_Symbol}
+    if not copies:
+        return replacements, results
+    for symbol, expr in copies.items():  # chains: tmp5 = tmp3 = tmp0
+        while expr in copies:
+            expr = copies[expr]
+        copies[symbol] = expr
+    return ([(symbol, expr.xreplace(copies)) for symbol, expr in replacements if symbol not in copies],
+            [expr.xreplace(copies) for expr in results])
 
 
 def _numbered(replacements: list, results: list, exprs: list) -> tuple:
