@@ -391,10 +391,10 @@ def test_a_state_set_after_initialization_is_refused_as_not_settable(pendulum_fm
     # found by review: a NaN start time or communication point was taken (doSteps returned OK and took
     # no step, or the FMU's time became NaN); an infinite step size never returned
     (float("nan"), None, None, "the start time is not finite"),
-    (0.0, float("nan"), H, "the communication point is not the FMU's time"),
-    (0.0, 0.0, float("inf"), "the step size is not a finite non-negative number"),
-    (0.0, 0.0, float("nan"), "the step size is not a finite non-negative number"),
-    (0.0, 0.0, -H, "the step size is not a finite non-negative number"),
+    (0.0, float("nan"), H, "the communication point nan is not the FMU's time 0"),
+    (0.0, 0.0, float("inf"), "the communication step size inf is not a finite non-negative number"),
+    (0.0, 0.0, float("nan"), "the communication step size nan is not a finite non-negative number"),
+    (0.0, 0.0, -H, "the communication step size -0.001 is not a finite non-negative number"),
 ])
 def test_a_time_or_step_that_is_not_finite_is_refused(pendulum_fmu, fmi_version, start, point, size, reason):
     from fmpy import extract
@@ -453,3 +453,164 @@ def test_a_constrained_fmu_warns_once_when_its_state_is_off_the_constraints(four
     else:
         assert len(warnings) == 1 and warned in warnings[0], messages
         assert closure_gap(result) > 1e-6
+
+
+# --- found by the review of session 12 ---------------------------------------------------------------
+
+def _cs_instance(fmu_path, fmi_version, start: float, messages: list, step_size: float | None = None):
+    """A Co-Simulation instance of ``fmu_path`` initialized at ``start`` (step_size set while
+    initializing when given), and the function reading values by name."""
+    from fmpy import extract
+    from fmpy.simulation import instantiate_fmu
+
+    description = read_model_description(str(fmu_path))
+    refs = {v.name: v.valueReference for v in description.modelVariables}
+    fmu = instantiate_fmu(extract(str(fmu_path)), description, fmi_type="CoSimulation",
+                          logger=lambda *args: messages.append(repr(args)))
+    if fmi_version == "2.0":
+        fmu.setupExperiment(startTime=start)
+        fmu.enterInitializationMode()
+    else:
+        fmu.enterInitializationMode(startTime=start)
+    if step_size is not None:
+        (fmu.setReal if fmi_version == "2.0" else fmu.setFloat64)([refs["step_size"]], [step_size])
+    fmu.exitInitializationMode()
+    get = fmu.getReal if fmi_version == "2.0" else fmu.getFloat64
+    return fmu, lambda names: np.array(get([refs[name] for name in names]))
+
+
+def test_only_the_fmi_functions_are_exported(pendulum_fmu, fmi_version):
+    """Found by review: the binary exported its kernel (lcg_double_pendulum_*), and its own calls went
+    through the dynamic symbol table, so a host that had loaded another FMU of the same model with
+    RTLD_GLOBAL (fixed g = 1.62) ran that one's kernel: q1(1) = 0.1631 instead of -0.3201, status OK."""
+    nm = shutil.which("nm")
+    if nm is None:
+        pytest.skip("nm (binutils) is not installed")
+    with zipfile.ZipFile(pendulum_fmu) as archive:
+        binary = next(name for name in archive.namelist() if name.startswith("binaries/"))
+        data = archive.read(binary)
+    path = Path(pendulum_fmu).with_suffix(".so")
+    path.write_bytes(data)
+    listing = subprocess.run([nm, "-D", "--defined-only", str(path)], capture_output=True, text=True, check=True)
+    exported = [line.split()[-1] for line in listing.stdout.splitlines() if line.split()[1] in "TDBR"]
+    prefix = "fmi2" if fmi_version == "2.0" else "fmi3"
+    assert exported and all(name.startswith(prefix) for name in exported), exported
+
+
+@pytest.mark.parametrize("start", [100.0, 1e5])
+def test_a_master_on_its_own_time_grid_far_from_zero_is_followed(pendulum, pendulum_fmu, fmi_version, start):
+    """Found by review: a master passing t0 + k dt (start 1e5, dt 1e-3) was refused at k = 2, "the
+    communication point is not the FMU's time": they differ by a rounding unit of t, and the
+    tolerance was 1e-9 of the step. The pendulum is autonomous, so 20 doSteps equal simulate's 20
+    RK4 steps from 0 (the reference)."""
+    messages: list = []
+    fmu, read = _cs_instance(pendulum_fmu, fmi_version, start, messages)
+    for k in range(20):
+        fmu.doStep(currentCommunicationPoint=start + k * H, communicationStepSize=H)
+    got = read(STATES)
+    fmu.freeInstance()
+    x0 = [X0[name] for name in STATES]
+    want = simulate(pendulum, x0, t_end=20 * H, h=H).x[-1]
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-12)
+
+
+def test_a_huge_step_size_does_not_freeze_short_communication_steps(pendulum, pendulum_fmu, fmi_version):
+    """Found by review: with step_size 1e10, a doStep over 0.05 counted as "nothing to integrate" (the
+    slack was 1e-9 of the step) and returned OK with the state unchanged. Now each doStep takes one
+    step of its interval: simulate with h = 0.05 is the reference."""
+    messages: list = []
+    fmu, read = _cs_instance(pendulum_fmu, fmi_version, 0.0, messages, step_size=1e10)
+    for k in range(4):
+        fmu.doStep(currentCommunicationPoint=k * 0.05, communicationStepSize=0.05)
+    got = read(STATES)
+    fmu.freeInstance()
+    want = simulate(pendulum, [X0[name] for name in STATES], t_end=0.2, h=0.05).x[-1]
+    assert abs(got[0] - X0["q1"]) > 0.05
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-12)
+
+
+def test_a_do_step_of_more_than_1e8_steps_is_refused(pendulum_fmu, fmi_version):
+    """Found by review: a doStep over 1e12 s (1e15 RK4 steps) never returned."""
+    messages: list = []
+    fmu, _ = _cs_instance(pendulum_fmu, fmi_version, 0.0, messages)
+    with pytest.raises(Exception, match="DoStep"):
+        fmu.doStep(currentCommunicationPoint=0.0, communicationStepSize=1e12)
+    fmu.freeInstance()
+    assert any("fixed steps of step_size" in m and "more than 1e+08" in m for m in messages), messages
+
+
+def test_model_exchange_refuses_a_time_or_state_that_is_not_finite(pendulum_fmu, fmi_version):
+    """Found by review: fmi2SetTime(NaN) and SetContinuousStates([NaN, ...]) returned OK, and the
+    outputs read NaN with status OK."""
+    from fmpy import extract
+    from fmpy.simulation import instantiate_fmu
+
+    description = read_model_description(str(pendulum_fmu))
+    messages: list = []
+    fmu = instantiate_fmu(extract(str(pendulum_fmu)), description, fmi_type="ModelExchange",
+                          logger=lambda *args: messages.append(repr(args)))
+    if fmi_version == "2.0":
+        fmu.setupExperiment(startTime=0.0)
+    fmu.enterInitializationMode()
+    fmu.exitInitializationMode()
+    if fmi_version == "2.0":
+        fmu.enterContinuousTimeMode()
+    with pytest.raises(Exception, match="SetTime"):
+        fmu.setTime(float("nan"))
+    with pytest.raises(Exception, match="SetContinuousStates"):
+        import ctypes
+
+        fmu.setContinuousStates((ctypes.c_double * 4)(1.0, float("nan"), 0.0, 0.0), 4)
+    fmu.freeInstance()
+    assert any("the time is not finite" in m for m in messages), messages
+    assert any("state 1 (value reference 1) is not finite" in m for m in messages), messages
+
+
+def test_a_compiled_model_without_its_points_is_refused_by_name(tmp_path, fmi_version):
+    """Found by review: compiled with outputs=("rhs", "energy"), the FMU's wrapper called the missing
+    points function (a gcc error; with binary=False a valid-looking FMU whose sources do not build)."""
+    system = compile_model(double_pendulum(), outputs=("rhs", "energy"), methods=("rk4",))
+    for binary in (True, False):
+        with pytest.raises(FmuError, match=r"without its 'points' output.*outputs=\(\.\.\., 'points'\)"):
+            export_fmu(system, tmp_path / "pendulum.fmu", binary=binary, fmi_version=fmi_version)
+
+
+def test_the_fmu_file_is_written_like_any_new_file_and_never_over_a_device(pendulum, tmp_path, fmi_version):
+    """Found by review: the FMU was mode 0600 under umask 022 (mkstemp's mode), an existing FIFO or
+    device at the path (/dev/null) was replaced by a regular file, and a write error named the
+    temporary file, not the path asked for."""
+    import os
+    import stat
+
+    saved = os.umask(0o022)
+    try:
+        fmu = export_fmu(pendulum, tmp_path / "pendulum.fmu", binary=False, fmi_version=fmi_version)
+    finally:
+        os.umask(saved)
+    assert stat.S_IMODE(fmu.stat().st_mode) == 0o644
+    fifo = tmp_path / "pipe.fmu"
+    os.mkfifo(fifo)
+    with pytest.raises(FmuError, match="exists and is not a regular file"):
+        export_fmu(pendulum, fifo, binary=False, fmi_version=fmi_version)
+    assert stat.S_ISFIFO(fifo.stat().st_mode)
+    with pytest.raises(FmuError, match=r"cannot write the FMU '/proc/lagcodegen\.fmu'"):
+        export_fmu(pendulum, "/proc/lagcodegen.fmu", binary=False, fmi_version=fmi_version)
+
+
+def test_a_start_off_a_velocity_constraint_is_warned(tmp_path, fmi_version):
+    """Found by review: the FMU's drift check read the position constraints only, so a sleigh
+    sliding sideways at the start ran with OK and no word (simulate warns). By hand, its blade
+    constraint -x' sin(theta) + y' cos(theta) is -sin(0.5) = -0.479 at x' = 1, y' = 0, theta = 0.5."""
+    x, y, theta = me.dynamicsymbols("x y theta")
+    m, inertia, a = sp.symbols("m I a", positive=True)
+    t = me.dynamicsymbols._t
+    xc, yc = x + a * sp.cos(theta), y + a * sp.sin(theta)
+    kinetic = m * (xc.diff(t) ** 2 + yc.diff(t) ** 2) / 2 + inertia * theta.diff(t) ** 2 / 2
+    blade = -x.diff(t) * sp.sin(theta) + y.diff(t) * sp.cos(theta)
+    model = Model("sleigh", [x, y, theta], [m, inertia, a], kinetic_energy=kinetic, motion_constraints=[blade],
+                  parameter_values={m: 2.0, inertia: 0.3, a: 0.4})
+    fmu = export_fmu(model, tmp_path / "sleigh.fmu", x0={"theta": 0.5, "x_d": 1.0}, step=1e-3, fmi_version=fmi_version)
+    messages: list = []
+    simulate_fmu(str(fmu), stop_time=0.01, logger=lambda *args: messages.append(repr(args)))
+    warnings = [m for m in messages if "is off constraint 0 by |A u + dphi/dt| = 0.479" in m]
+    assert len(warnings) == 1 and "ExitInitializationMode" in warnings[0], messages

@@ -15,6 +15,7 @@ import math
 import numbers
 import os
 import platform
+import secrets
 import shlex
 import subprocess
 import sys
@@ -150,6 +151,8 @@ def _checked_path(path) -> Path:
         raise FmuError(f"FMU path {str(path)!r} is a directory; give a file name such as {str(target / 'model.fmu')!r}")
     if not target.parent.is_dir():
         raise FmuError(f"FMU path {str(path)!r}: its folder {str(target.parent)!r} does not exist")
+    if target.exists() and not target.is_file():  # a device or a FIFO (/dev/null) would be replaced by a file
+        raise FmuError(f"FMU path {str(path)!r} exists and is not a regular file; give a file name")
     return target
 
 
@@ -174,6 +177,10 @@ def _kernel_sources(model, method: str, fixed) -> CSources:
                            f"{', '.join(layout.methods) or 'none'})")
         if f"{layout.prefix}_rhs" not in layout.functions:
             raise FmuError(f"model {layout.model!r} is compiled without its rhs, which Model Exchange needs")
+        for output, present in (("points", layout.points), ("measurements", layout.measurements)):
+            if present and f"{layout.prefix}_{output}" not in layout.functions:
+                raise FmuError(f"model {layout.model!r} is compiled without its {output!r} output, which the FMU's "
+                               f"outputs read: compile it with outputs=(..., {output!r}), or export the Model")
         return model.sources
     if isinstance(model, Model):
         model = derive_equations(model)
@@ -277,7 +284,9 @@ def _build_binary(files: dict, so_name: str, compiler: str | None) -> bytes:
         for name, text in files.items():
             (folder / Path(name).name).write_text(text)
         c_files = [str(folder / Path(name).name) for name in files if name.endswith(".c")]
-        argv = [*command, *DEFAULT_FLAGS, "-fPIC", "-shared", "-I", str(folder), *c_files,
+        # hidden: only the fmi* functions are exported (FMI2_Export / FMI3_Export), so the kernel's own calls
+        # bind to this FMU's kernel, never to a same-named one another FMU or the host exports first
+        argv = [*command, *DEFAULT_FLAGS, "-fPIC", "-shared", "-fvisibility=hidden", "-I", str(folder), *c_files,
                 "-o", str(folder / so_name), "-lm"]
         try:
             run = subprocess.run(argv, capture_output=True, text=True)
@@ -291,10 +300,14 @@ def _build_binary(files: dict, so_name: str, compiler: str | None) -> bytes:
 
 
 def _write_zip(target: Path, members: dict) -> None:
-    """Write the archive beside ``target``, then move it there (a reader never sees half an FMU)."""
-    handle, temporary = tempfile.mkstemp(dir=target.parent, suffix=".fmu.tmp")
-    os.close(handle)
+    """Write the archive beside ``target``, then move it there (a reader never sees half an FMU), with
+    the mode a new file gets under the umask (mkstemp's would be 0600). An OSError is an FmuError naming
+    ``target``, not the temporary file."""
+    temporary = None
     try:
+        candidate = target.parent / f".{target.name}.{secrets.token_hex(8)}.tmp"
+        os.close(os.open(candidate, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))  # the umask applies
+        temporary = str(candidate)
         with zipfile.ZipFile(temporary, "w", zipfile.ZIP_DEFLATED) as archive:
             for name, data in members.items():
                 info = zipfile.ZipInfo(name, ZIP_TIME)
@@ -302,6 +315,8 @@ def _write_zip(target: Path, members: dict) -> None:
                 info.external_attr = 0o644 << 16
                 archive.writestr(info, data)
         os.replace(temporary, target)
+    except OSError as error:
+        raise FmuError(f"cannot write the FMU {str(target)!r}: {error.strerror or error}") from None
     finally:
-        if os.path.exists(temporary):
+        if temporary is not None and os.path.exists(temporary):
             os.unlink(temporary)
