@@ -288,7 +288,7 @@ class CPrinter(C99CodePrinter):
         return self._print_Float(sympy.Float(value, 30))
 
     def _print_Float(self, flt):
-        if flt.is_finite and flt != 0:  # a literal the C type rounds to inf or 0: compilers warn, values are lost
+        if flt.is_finite and not flt.is_zero:  # a literal the C type rounds to inf or 0: compilers warn, values lost
             real = numpy.float32 if self.precision == "float" else numpy.float64
             with numpy.errstate(over="ignore", under="ignore"):
                 rounded = real(float(flt))
