@@ -102,13 +102,19 @@ def _check_static_constraints(eom: EquationsOfMotion) -> None:
                              "no static equilibrium under a moving constraint")
 
 
-def _force_scale(F_num, A_num, q0: np.ndarray, free: list, x: np.ndarray) -> float:
-    """Size of the terms of the equations at x = (q_free, lambda): max(1, |F|, |A|^T |lambda|, |A| |q|)."""
+def _force_scale(F_num, A_num, q0: np.ndarray, free: list, x: np.ndarray) -> np.ndarray:
+    """Size of the terms of each equation at x = (q_free, lambda): max(|F_i|, (|A|^T |lambda|)_i) for
+    the force rows, (|A| |q|)_j and |A_j| max|q| for the constraints; each at least 1e-6 of its
+    group's largest (a row whose terms all vanish there, y_s = 0 at y_s = 1e-78, keeps a size).
+    Relative, with no floor of 1: one scale of at least 1 took the guess of a micro four-bar
+    (forces ~1e-12) for its equilibrium."""
     q = q0.copy()
     q[free] = x[:len(free)]
     A = np.abs(A_num(q))
-    terms = (np.abs(F_num(q)), A.T @ np.abs(x[len(free):]), A @ np.abs(q))
-    return max([1.0] + [float(np.max(v, initial=0.0)) for v in terms])
+    forces = np.maximum(np.abs(F_num(q)), A.T @ np.abs(x[len(free):]))[free]
+    lengths = np.maximum(A @ np.abs(q), A.sum(axis=1) * np.max(np.abs(q), initial=0.0))
+    groups = [np.maximum(g, 1e-6 * np.max(g, initial=0.0)) for g in (forces, lengths)]
+    return np.maximum(np.concatenate(groups), 1e-300)
 
 
 def _held(eom: EquationsOfMotion, fix: Any, q0: np.ndarray) -> dict:
@@ -129,18 +135,23 @@ def _held(eom: EquationsOfMotion, fix: Any, q0: np.ndarray) -> dict:
 
 
 def _root(eom: EquationsOfMotion, fun, jac, x0: np.ndarray, z: list, scale, tol: float) -> np.ndarray:
-    """scipy root (hybr, then lm); ValueError naming the worst equation if neither converges."""
+    """scipy root (hybr, then lm) on the equations each divided by its size at x0 (forces of 1e-12 N m
+    beside constraints of 1e-3 m otherwise stall the solver); ValueError naming the worst equation
+    if neither converges."""
     best = x0
     with np.errstate(all="ignore"):
+        rows = scale(x0)
+        rows = np.where(np.isfinite(rows) & (rows > 0), rows, 1.0)
+        scaled, scaled_jac = (lambda x: fun(x) / rows), (lambda x: jac(x) / rows[:, None])
         for method in ("hybr", "lm"):
-            x = scipy.optimize.root(fun, best, jac=jac, method=method, options={"xtol": 1e-14}).x
+            x = scipy.optimize.root(scaled, best, jac=scaled_jac, method=method, options={"xtol": 1e-14}).x
             r = fun(x)
-            if np.all(np.isfinite(r)) and np.max(np.abs(r)) <= tol * scale(x):
+            if np.all(np.isfinite(r)) and np.all(np.abs(r) <= tol * scale(x)):
                 return x
             if np.all(np.isfinite(r)) and np.max(np.abs(r)) < np.max(np.abs(fun(best))):
                 best = x
     r = fun(best)
-    k = int(np.argmax(np.abs(r)))
+    k = int(np.argmax(np.abs(r) / scale(best)))
     free = len(z) - eom.m
     what = (f"equilibrium equation of coordinate {z[k]}" if k < free else
             f"constraint {k - free}: {eom.constraints[k - free]} = 0")

@@ -188,16 +188,19 @@ def _solve_numeric(eom: EquationsOfMotion, G: sp.Matrix, vals: dict, guesses: An
     angles = angle_like(eom)
     starts = _starting_points(eom, guesses, angles)
     with np.errstate(all="ignore"):
-        # size of the terms of F at the starts, |F| and |dF/dq| |q|: a start that is already a
-        # root has |F| at round-off level, which alone would make the tolerance unreachable
-        sizes = (max(np.max(np.abs(fun(x0))), np.max(np.abs(jac(x0)) @ np.abs(x0))) for x0 in starts)
-        scale = max([s for s in sizes if np.isfinite(s)], default=1.0)
-        tol = 1e-9 * max(scale, 1e-12)
+        # size of the terms of each equation at the starts, |F_i| and |dF_i/dq| |q|: a start that is
+        # already a root has |F| at round-off level, which alone would make the tolerance unreachable.
+        # Per equation: one scale for all let a small force (m2 = 0.01 beside m1 = 100) pass anywhere
+        sizes = np.zeros(n)
+        for x0 in starts:
+            row = np.maximum(np.abs(fun(x0)), np.abs(jac(x0)) @ np.abs(x0))
+            sizes = np.maximum(sizes, np.where(np.isfinite(row), row, 0.0))
+        tol = 1e-9 * np.maximum(sizes, 1e-12 * max(float(sizes.max(initial=0.0)), 1e-300))
         roots = []
         for x0 in starts:
             x = scipy.optimize.root(fun, x0, jac=jac, method="hybr", options={"xtol": 1e-13}).x
             residual = fun(x)
-            if np.all(np.isfinite(x)) and np.all(np.isfinite(residual)) and np.max(np.abs(residual)) <= tol:
+            if np.all(np.isfinite(x)) and np.all(np.isfinite(residual)) and np.all(np.abs(residual) <= tol):
                 roots.append(_canonical(x, angles))
     return [dict(zip(q, map(float, x))) for x in _unique(roots, angles)]
 
@@ -375,9 +378,36 @@ class LinearModel:
 
     @property
     def stable(self) -> bool:
-        """True when every w**2 > 0 (K0 positive definite: Lagrange-Dirichlet); a zero
-        (neutral) or negative w**2 gives False."""
-        return bool(np.all(self.eigenvalues() > 0))
+        """True when every w**2 > 0 (K0 positive definite: Lagrange-Dirichlet) and the damping, C0's
+        symmetric part, is positive semidefinite; a zero (neutral) or negative w**2 then gives
+        False. Otherwise the undamped test cannot tell (negative damping destabilizes a positive
+        K0, a gyroscopic C0 can stabilize a negative one): with K0 positive definite, True when
+        every eigenvalue of the first-order system (`first_order_eigenvalues`) has a negative real
+        part; with K0 not positive definite and a gyroscopic C0, a ValueError."""
+        positive = bool(np.all(self.eigenvalues() > 0))
+        C0 = _numeric_matrix(self.C0, "C0")
+        size = max(np.max(np.abs(C0), initial=0.0), 1e-300)
+        damping = np.linalg.eigvalsh((C0 + C0.T) / 2)
+        if positive and damping.min(initial=0.0) >= -1e-12 * size:
+            return True
+        if positive:
+            rates = self.first_order_eigenvalues()
+            return bool(np.all(rates.real < -1e-12 * max(np.max(np.abs(rates)), 1e-300)))
+        if np.max(np.abs(C0 - C0.T), initial=0.0) > 1e-12 * size:
+            raise ValueError("K0 is not positive definite and C0 has a gyroscopic (skew) part, which can "
+                             "stabilize it: read first_order_eigenvalues() (purely imaginary: marginally "
+                             "stable in the linear approximation; a positive real part: unstable)")
+        return False
+
+    def first_order_eigenvalues(self) -> np.ndarray:
+        """Eigenvalues of ``[[0, I], [-M0^-1 K0, -M0^-1 C0]]``, the first-order form of the linear
+        model with its damping and gyroscopic terms, shape (2 n,), sorted by real part."""
+        M0, C0, K0 = (_numeric_matrix(A, name) for A, name in ((self.M0, "M0"), (self.C0, "C0"), (self.K0, "K0")))
+        n = M0.shape[0]
+        A = np.block([[np.zeros((n, n)), np.eye(n)],
+                      [-np.linalg.solve(M0, K0), -np.linalg.solve(M0, C0)]])
+        rates = np.linalg.eigvals(A)
+        return rates[np.argsort(rates.real, kind="stable")]
 
     def natural_frequencies(self) -> np.ndarray:
         """Undamped natural frequencies in rad/s, shape (n,), ascending in w**2.
@@ -474,6 +504,9 @@ def linearize(eom: EquationsOfMotion, q0: Any, values: Mapping | None = None, in
     _check_unconstrained(eom, "linearize", "statics.state_space.linearize_state, which reduces to the "
                          "independent states")
     eom = hold_inputs(eom, inputs)
+    if eom.n_q != eom.n_u:  # the quaternion body: sympy's det() of a non-square W failed with no words
+        raise ValueError(f"linearize needs one speed per coordinate: model {eom.name!r} has {eom.n_q} coordinates "
+                         f"and {eom.n_u} speeds; use statics.state_space.linearize_state")
     point = coordinate_point(eom, q0)
     at = {qi: sp.sympify(v) for qi, v in zip(eom.q, point)}
     at[eom.t] = sp.S.Zero
@@ -515,8 +548,12 @@ def _check_at_rest(eom: EquationsOfMotion, at: dict, rest: dict, K: sp.Matrix, v
     if force.free_symbols or stiffness.free_symbols:
         return
     force, stiffness = (np.array(A.evalf(), dtype=float) for A in (force, stiffness))
+    q0 = np.array([float(sp.sympify(at[c]).xreplace(numbers)) for c in eom.q])
     for i, (residual, row) in enumerate(zip(force.ravel(), stiffness)):
-        if not abs(residual) <= 1e-8 * (1.0 + np.abs(row).max(initial=0.0)):
+        # relative to the row's stiffness (and its terms |K_i| |q0|), with no absolute floor: a floor
+        # of 1 took any state of a 1 mg pendulum (forces ~1e-8) for an equilibrium
+        size = max(np.abs(row).max(initial=0.0), float(np.abs(row) @ np.abs(q0)), 1e-300)
+        if not abs(residual) <= 1e-8 * size:
             raise ValueError(f"q0 = {[float(sp.sympify(v).xreplace(numbers)) for v in (at[c] for c in eom.q)]} "
                              f"is no equilibrium of model {eom.name!r}: the generalized force on {eom.q[i]} at rest "
                              f"is {residual:.6g}, not 0; find one with find_equilibria, or linearize about any state "

@@ -14,6 +14,8 @@ since nothing assumes u = qd. Models with holonomic constraints are not covered 
 """
 from __future__ import annotations
 
+import math
+import numbers as real_numbers
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -134,6 +136,8 @@ def linearize_state(eom: EquationsOfMotion, x0: Any, r0: Any = None, values: Map
         raise ValueError(f"model {eom.name!r} has constraints: its linearization is numeric; pass values= "
                          "({} for the defaults)")
     require_closed_form(eom, "linearize_state")
+    if isinstance(t0, real_numbers.Real) and not math.isfinite(float(t0)):  # A had NaN entries, no error
+        raise ValueError(f"t0 must be finite, got {t0!r}")
     states = tuple(eom.q) + tuple(eom.u)
     if eom.n_dependent:
         x0 = _with_dependent_speeds(eom, x0, values, t0)
