@@ -127,3 +127,33 @@ def test_the_stride_a_refusal_suggests_fits_and_is_the_least_that_does(pendulum)
     assert sweep(pendulum, grid, trajectories=True, stride=stride, max_output_bytes=4000, **run).completed
     with pytest.raises(OutputTooLargeError):
         sweep(pendulum, grid, trajectories=True, stride=stride - 1, max_output_bytes=4000, **run)
+
+
+@pytest.mark.parametrize("limit, error, message", [
+    ("1e9", TypeError, "max_output_bytes must be a positive integer \\(bytes\\), got str '1e9'"),
+    (-1, ValueError, "max_output_bytes must be a positive integer \\(bytes\\), got -1"),
+    (0, ValueError, "got 0"),
+])
+def test_a_memory_limit_that_is_no_positive_integer_is_named(pendulum, limit, error, message):
+    """Found by review: "1e9" failed in a comparison naming nothing; -1 ran into "more than the limit of -1 B"."""
+    with pytest.raises(error, match=message):
+        sweep(pendulum, GRID, trajectories=True, max_output_bytes=limit, **COMMON)
+
+
+def test_a_masked_grid_axis_is_refused(pendulum):
+    """Found by review: a masked entry of a numpy masked array ran as a member (np.asarray keeps it)."""
+    axis = np.ma.masked_array([0.5, 1.0, 2.0], mask=[False, True, False])
+    with pytest.raises(ValueError, match="grid axis 'm2' is a masked array with masked entries"):
+        sweep(pendulum, {"m2": axis}, **COMMON)
+
+
+def test_a_swept_input_that_overflows_names_the_member(driven_oscillator, tmp_path):
+    """Found by review: base 1e300 swept by F = 1e10 overflowed to inf and ran (statuses 2 on the lane
+    kernel, 6 on the scalar one), where simulate refuses a non-finite input by name."""
+    from lagcodegen.pipeline import compile_model
+    from lagcodegen.run.inputs import InputError
+
+    system = compile_model(driven_oscillator(), methods=("rk4",), cache_dir=tmp_path)
+    for kernel in ("auto", "scalar"):
+        with pytest.raises(InputError, match="member 1: input 'F' scaled by the swept 'F' = 10000000000.0 is not finite"):
+            sweep(system, {"F": [1.0, 1e10]}, x0={"x": 0.3}, t_end=1.0, h=1e-2, inputs=1e300, kernel=kernel)

@@ -74,3 +74,19 @@ def test_a_projected_run_does_not_warn(linkage):
         warnings.simplefilter("error")
         run = simulate(linkage, x0, T_END, H, "rk4", stride=STRIDE, project=True)
     assert loop_closure(run.x).max() < 1e-9
+
+
+def test_a_start_off_both_levels_names_both(linkage):
+    """Found by review: theta2 moved by 0.05 from a consistent four-bar state warned of the velocity
+    residual alone (0.00165), not of |phi| (0.0146), the larger. phi by hand: the loop closure's
+    x-component l1 cos(theta1) + l2 cos(theta2) - l3 cos(theta3) - d at the moved theta2."""
+    x0 = np.array(catalog.four_bar_state(0.3, 1.0), dtype=float)
+    x0[1] += 0.05
+    l1, l2, l3, d = 0.1, 0.35, 0.3, 0.4
+    phi_x = l1 * math.cos(x0[0]) + l2 * math.cos(x0[1]) - l3 * math.cos(x0[2]) - d
+    phi_y = l1 * math.sin(x0[0]) + l2 * math.sin(x0[1]) - l3 * math.sin(x0[2])
+    with pytest.warns(ConstraintDriftWarning, match="started off the constraints on the velocities") as caught:
+        simulate(linkage, x0, t_end=0.01, h=1e-3, residuals=True)
+    message = str(caught[0].message)
+    found = float(re.search(r"on the positions, max \|phi\| = ([0-9.e-]+),", message).group(1))
+    assert found == pytest.approx(max(abs(phi_x), abs(phi_y)), rel=1e-2), message

@@ -159,7 +159,7 @@ def check_output_size(nbytes: int, n_steps: int, stride: int, what: str, limit: 
     `output_limit`), naming the size and the smallest stride that fits: by bisection on
     ``size_of(stride)`` (the bytes at that stride, fixed parts included) when given, else with
     ``nbytes`` taken as proportional to the samples."""
-    bound = output_limit() if limit is None else limit
+    bound = output_limit() if limit is None else _checked_limit(limit)
     if nbytes <= bound:
         return
     samples = n_steps // stride + 1
@@ -179,10 +179,20 @@ def check_output_size(nbytes: int, n_steps: int, stride: int, what: str, limit: 
 def check_memory(nbytes: int, what: str, hint: str, limit: int | None = None) -> None:
     """Refuse (`OutputTooLargeError`) ``nbytes`` above ``limit`` (default `output_limit`)."""
     source = "half the physical memory" if limit is None else "max_output_bytes"
-    limit = output_limit() if limit is None else limit
+    limit = output_limit() if limit is None else _checked_limit(limit)
     if nbytes > limit:
         raise OutputTooLargeError(f"{what}: {format_bytes(nbytes)}, more than the limit of "
                                   f"{format_bytes(limit)} ({source}); {hint}")
+
+
+def _checked_limit(limit) -> int:
+    """``max_output_bytes`` as a positive int; TypeError or ValueError naming it ("1e9" failed in a
+    comparison with no name, -1 gave "more than the limit of -1 B")."""
+    if isinstance(limit, bool) or not isinstance(limit, numbers.Integral):
+        raise TypeError(f"max_output_bytes must be a positive integer (bytes), got {type(limit).__name__} {limit!r}")
+    if limit <= 0:
+        raise ValueError(f"max_output_bytes must be a positive integer (bytes), got {limit}")
+    return int(limit)
 
 
 def format_bytes(n: float) -> str:

@@ -52,8 +52,11 @@ def warn_if_drifted(trajectory, tolerance: float, m: int) -> bool:
     rates = np.abs(trajectory.residuals[0, m:2 * m].astype(np.float64))
     start = float(np.where(np.isfinite(rates), rates, -np.inf).max(initial=-np.inf))
     if start > tolerance:
+        phi = np.abs(trajectory.residuals[0, :m].astype(np.float64))
+        position = float(np.where(np.isfinite(phi), phi, -np.inf).max(initial=-np.inf))
+        also = f" and on the positions, max |phi| = {position:.3g}," if position > tolerance else ""
         warnings.warn(
-            f"the run started off the constraints on the velocities: max |A u + dphi/dt| = {start:.3g} at "
+            f"the run started off the constraints on the velocities: max |A u + dphi/dt| = {start:.3g}{also} at "
             f"t = {trajectory.t[0]:.6g} (drift_tolerance = {tolerance:g}); start from "
             "statics.consistent.consistent_state", ConstraintDriftWarning, stacklevel=3)
         return True

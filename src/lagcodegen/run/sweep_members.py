@@ -64,6 +64,8 @@ def _column_names(table: Mapping) -> tuple:
 def column_values(name: str, values, what: str) -> np.ndarray:
     """One grid axis or table column as a 1-D float array (a scalar is one value); TypeError
     for non-numbers, ValueError for nested or ragged values, naming the column."""
+    if np.ma.is_masked(values):  # np.asarray keeps the masked entries' values: they would run
+        raise ValueError(f"{what} {name!r} is a masked array with masked entries; pass only the values to run")
     try:
         array = np.asarray(values)
     except ValueError as error:  # ragged nesting
@@ -234,7 +236,14 @@ def member_input_tables(system: CompiledSystem, columns, values, inputs, member_
         for j in swept:
             scale[:, layout.inputs.index(columns[j])] = values[:, j]
         times = np.repeat(base.times[None, :], n_members, axis=0)
-        return times, base.values[None, :, :] * scale[:, None, :]
+        with np.errstate(over="ignore", invalid="ignore"):
+            scaled = base.values[None, :, :] * scale[:, None, :]
+        bad = np.argwhere(~np.isfinite(scaled))
+        if bad.size:  # 1e300 * 1e10: simulate refuses such an input by name, a sweep ran it
+            member, _, column = bad[0]
+            raise InputError(f"member {member}: input {layout.inputs[column]!r} scaled by the swept "
+                             f"{layout.inputs[column]!r} = {float(scale[member, column])!r} is not finite")
+        return times, scaled
     k = max(t.times.size for t in tables)
     times = np.array([np.pad(t.times, (0, k - t.times.size), mode="edge") for t in tables])
     table_values = np.array([np.pad(t.values, ((0, k - t.times.size), (0, 0)), mode="edge") for t in tables])
