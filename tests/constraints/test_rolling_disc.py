@@ -257,3 +257,20 @@ def test_steady_motion_names_its_bad_input():
         steady_motion(eom, {"theta": 0.3}, unknowns=["x_d", "y_d"], steady=["theta_d"])
     with pytest.raises(ValueError, match="'theta' is a coordinate"):
         steady_motion(eom, {"theta": 0.3}, unknowns=["phi_d", "x_d", "y_d"], steady=["theta"])
+
+
+def test_steady_lists_with_a_repeat_or_speeds_the_constraints_cannot_complete_are_named():
+    """Found by review: a repeated unknown was silently dropped ("no solution from the given guesses"),
+    a repeated speed gave numpy's "Last 2 dimensions of the array must be square", and naming the speeds
+    the constraints solve for (x_d, y_d) a bare "Singular matrix"."""
+    from lagcodegen.statics.steady import steady_eigenvalues, steady_motion
+
+    eom = derive_equations(rolling_disc())
+    with pytest.raises(ValueError, match="unknowns names 'x_d' more than once"):
+        steady_motion(eom, {"theta": 0.3, "psi_d": 0.5}, unknowns=["x_d", "x_d", "phi_d"], steady=["theta_d"])
+    turn = steady_motion(eom, {"theta": 0.3, "psi_d": 0.5, "phi_d": 1.0}, unknowns=["phi_d", "x_d", "y_d"],
+                         steady=["theta_d"])
+    with pytest.raises(ValueError, match="'psi_d' named more than once"):
+        steady_eigenvalues(eom, turn, cyclic=["x", "y", "psi", "phi"], speeds=["psi_d", "psi_d", "phi_d"])
+    with pytest.raises(ValueError, match="the velocity constraints do not fix the speeds not named"):
+        steady_eigenvalues(eom, turn, cyclic=["x", "y", "psi", "phi"], speeds=["x_d", "y_d", "phi_d"])

@@ -107,3 +107,18 @@ def test_linearize_state_refuses_a_time_that_is_not_finite():
     eom = _pendulum(1.0, 1.0)
     with pytest.raises(ValueError, match="t0 must be finite"):
         linearize_state(eom, [0.1, 0.0], values={}, t0=float("nan"))
+
+
+def test_a_continuum_of_equilibria_is_warned_of():
+    """Was: the double pendulum with g = 0 (every configuration an equilibrium, by hand: F = 0) gave its
+    64 starting points as 64 equilibria with no word. With gravity, the four isolated ones, no warning."""
+    import warnings
+
+    from lagcodegen.statics.equilibria import EquilibriumWarning
+
+    eom = derive_equations(catalog.double_pendulum())
+    with pytest.warns(EquilibriumWarning, match="singular Jacobian of the equilibrium conditions"):
+        find_equilibria(eom, values={"g": 0.0})
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", EquilibriumWarning)
+        assert len(find_equilibria(eom, values={})) == 4

@@ -34,6 +34,7 @@ import dataclasses
 import itertools
 import math
 import numbers
+import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -202,7 +203,20 @@ def _solve_numeric(eom: EquationsOfMotion, G: sp.Matrix, vals: dict, guesses: An
             residual = fun(x)
             if np.all(np.isfinite(x)) and np.all(np.isfinite(residual)) and np.all(np.abs(residual) <= tol):
                 roots.append(_canonical(x, angles))
-    return [dict(zip(q, map(float, x))) for x in _unique(roots, angles)]
+        found = _unique(roots, angles)
+        singular = [x for x in found if np.linalg.matrix_rank(jac(x), tol=1e-9 * max(np.abs(jac(x)).max(), 1e-300)
+                                                              ) < n or not np.abs(jac(x)).max() > 0]
+    if singular:
+        warnings.warn(f"{len(singular)} of the {len(found)} equilibria of model {eom.name!r} found have a singular "
+                      f"Jacobian of the equilibrium conditions (e.g. at q = {list(map(float, singular[0]))}): not "
+                      "isolated (a continuum, a free coordinate or g = 0: the points returned are where the starting "
+                      "points fell) or degenerate; hold the free coordinates, or read them as one family",
+                      EquilibriumWarning, stacklevel=3)
+    return [dict(zip(q, map(float, x))) for x in found]
+
+
+class EquilibriumWarning(UserWarning):
+    """find_equilibria found equilibria that are not isolated (or are degenerate)."""
 
 
 def vector_function(q: list, expr: sp.Matrix, shape: tuple):

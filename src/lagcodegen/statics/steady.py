@@ -79,6 +79,10 @@ def steady_motion(eom: EquationsOfMotion, given: Mapping, unknowns: Sequence[str
     for name in list(unknowns) + list(steady):
         if name not in index:
             raise ValueError(f"steady motion: {name!r} is no state of model {eom.name!r} (states: {', '.join(names)})")
+    for label, listed in (("unknowns", unknowns), ("steady", steady)):
+        twice = sorted({name for name in listed if list(listed).count(name) > 1})
+        if twice:  # found by review: a repeated unknown was dropped, and the solve failed with a vague message
+            raise ValueError(f"steady motion: {label} names {', '.join(map(repr, twice))} more than once")
     speeds = {s.name: j for j, s in enumerate(eom.u)}
     for name in steady:
         if name not in speeds:
@@ -136,6 +140,9 @@ def steady_eigenvalues(eom: EquationsOfMotion, motion: SteadyMotion, cyclic: Seq
     if eom.n_holonomic:
         raise ValueError(f"steady eigenvalues: model {eom.name!r} has holonomic constraints; reduce it to "
                          "independent coordinates first")
+    twice = sorted({name for name in list(cyclic) + list(speeds) if (list(cyclic) + list(speeds)).count(name) > 1})
+    if twice:  # found by review: numpy's "Last 2 dimensions of the array must be square"
+        raise ValueError(f"steady eigenvalues: {', '.join(map(repr, twice))} named more than once")
     kept_q = [i for i, name in enumerate(q_names) if name not in cyclic]
     accelerations, _ = _functions(eom, values, t)
     kept_u = [u_names.index(name) for name in speeds]
@@ -154,7 +161,12 @@ def steady_eigenvalues(eom: EquationsOfMotion, motion: SteadyMotion, cyclic: Seq
         if dependent:  # A_D u_D = -(A_I u_I + b)
             A_here = np.asarray(A(x[:n_q]), dtype=s.dtype)
             rest = A_here[:, kept_u] @ x[[n_q + j for j in kept_u]] + np.asarray(b(x[:n_q]), dtype=s.dtype).ravel()
-            x[[n_q + j for j in dependent]] = np.linalg.solve(A_here[:, dependent], -rest)
+            try:
+                x[[n_q + j for j in dependent]] = np.linalg.solve(A_here[:, dependent], -rest)
+            except np.linalg.LinAlgError:  # found by review: a bare "Singular matrix"
+                raise ValueError(f"steady eigenvalues: the velocity constraints do not fix the speeds not named "
+                                 f"({', '.join(u_names[j] for j in dependent)}) from {', '.join(speeds)}: name "
+                                 "speeds whose complement the constraints solve for") from None
         rates = np.asarray(K(x), dtype=s.dtype).ravel()
         return np.concatenate([rates[kept_q], accelerations(x)[kept_u]])
 
