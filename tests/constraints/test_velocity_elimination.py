@@ -355,3 +355,20 @@ def test_a_symbol_named_like_the_kernels_own_locals_is_renamed(sleighs, tmp_path
     state = np.array([0.1, -0.2, 0.7, 0.4, 1.3])  # x, y, theta, x', theta'
     # the names order the CSE's terms, so rounding may differ in the last place
     np.testing.assert_allclose(make_rhs(system)(0.0, state), make_rhs(sleighs["y"])(0.0, state), rtol=1e-13, atol=1e-15)
+
+
+def test_a_sweep_member_on_the_singular_heading_gets_its_own_status(sleighs):
+    """Found by review: one member of three starting at theta = pi/2 (y' dependent: A_D = cos(theta), by
+    hand singular there) refused the whole sweep; as any other singular start it is now that member's
+    SINGULAR_CONSTRAINTS, and the others equal their own simulate runs."""
+    from lagcodegen.run.simulate import Status
+    from lagcodegen.run.sweep import sweep
+
+    system = sleighs["y"]
+    base = {"x": 0.0, "y": 0.0, "theta": 0.0, "x_d": 0.5}
+    result = sweep(system, members={"theta": [0.2, np.pi / 2, 1.0], "theta_d": [0.5, 0.0, -0.5]}, x0=base,
+                   t_end=0.5, h=1e-2)
+    assert result.status.tolist() == [Status.OK, Status.SINGULAR_CONSTRAINTS, Status.OK]
+    for i, (theta, rate) in enumerate([(0.2, 0.5), (1.0, -0.5)]):
+        alone = simulate(system, base | {"theta": theta, "theta_d": rate}, t_end=0.5, h=1e-2).x[-1]
+        np.testing.assert_array_equal(result.x_final[2 * i], alone)

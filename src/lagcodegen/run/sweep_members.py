@@ -123,11 +123,14 @@ def member_arrays(system: CompiledSystem, columns, values, x0, params):
 
 def check_member_starts(system: CompiledSystem, xs, ps, t0: float, columns, values) -> None:
     """Every member's initial state as `simulate` checks it (`simulate.check_start`): a ValueError
-    naming the first member that cannot start; and a `ConstraintDriftWarning` naming the members
-    that start off constraints with multipliers by more than the drift tolerance (simulate warns of
-    the same through its residuals)."""
+    naming the first member off Kane's configuration constraints; and a `ConstraintDriftWarning`
+    naming the members that start off constraints with multipliers by more than the drift tolerance
+    (simulate warns of the same through its residuals). A member whose eliminated dependent speeds
+    cannot be solved at its start (a singular constraint Jacobian in them) is left to the run, which
+    gives it SINGULAR_CONSTRAINTS as it gives a singular start of any other model (found by review:
+    one such member refused the whole sweep)."""
     from .drift import DRIFT_TOLERANCE
-    from .simulate import check_start, start_offsets
+    from .simulate import _check_configuration, start_offsets
 
     layout = system.layout
     configured = f"{layout.prefix}_project" in layout.functions and not layout.n_constraints
@@ -138,7 +141,7 @@ def check_member_starts(system: CompiledSystem, xs, ps, t0: float, columns, valu
     off = []
     for i, (x, p) in enumerate(zip(xs, ps)):
         try:
-            check_start(system, x, p[:n_p], t0)
+            _check_configuration(system, x, p[:n_p], t0)
         except ValueError as error:
             raise ValueError(f"member {i} ({_member_text(columns, values[i])}): {error}") from None
         offset = start_offsets(system, x, p[:n_p], t0)
