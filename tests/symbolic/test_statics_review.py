@@ -122,3 +122,10 @@ def test_a_continuum_of_equilibria_is_warned_of():
     with warnings.catch_warnings():
         warnings.simplefilter("error", EquilibriumWarning)
         assert len(find_equilibria(eom, values={})) == 4
+
+
+def test_an_inconsistent_state_is_named_before_any_rank_test():
+    """Was: the all-zero four-bar state (the CLI's default) blamed "[[M, A^T], [A, 0]] ... constraints
+    that lost rank"; by hand its loop closure is l1 + l2 - l3 - d = 0.1 + 0.35 - 0.3 - 0.4 = -0.25."""
+    with pytest.raises(ValueError, match=r"violates constraint row 0 of model 'four_bar' \(residual -0\.25\)"):
+        linearize_state(derive_equations(catalog.four_bar()), [0.0] * 6, values={})

@@ -210,6 +210,15 @@ def _constrained(eom, states, point, held, at, vals, number, parts, t0) -> State
     M, A = sp.Matrix(eom.mass_matrix), sp.Matrix(eom.constraint_jacobian)
     K = sp.Matrix(sp.BlockMatrix([[M, A.T], [A, sp.zeros(m, m)]]))
     rhs = sp.Matrix.vstack(sp.Matrix(eom.forcing), sp.Matrix(eom.constraint_bias))
+    # consistency first: an inconsistent start was blamed on a rank loss (found by review)
+    held_rows = eom.n_holonomic
+    c = sp.Matrix.vstack(sp.Matrix(eom.constraints)[:held_rows, :],
+                         A * sp.Matrix(eom.u) + sp.Matrix(eom.constraint_rate))
+    residual = number(c, "constraints").ravel()
+    if np.abs(residual).max(initial=0.0) > 1e-8 * (1 + np.abs(point_values := number(sp.Matrix(states), "x0")).max()):
+        worst = int(np.argmax(np.abs(residual)))
+        raise ValueError(f"x0 = {point_values.ravel().tolist()} violates constraint row {worst} of model {eom.name!r} "
+                         f"(residual {residual[worst]:.3g}): linearize about a consistent state (consistent_state)")
     K_here = number(K, "constraint matrix [[M, A^T], [A, 0]]")
     if not np.all(np.isfinite(K_here)) or np.linalg.matrix_rank(K_here) < n + m:
         raise ValueError(f"[[M, A^T], [A, 0]] of model {eom.name!r} is singular at x0 = {list(point)}: a singular mass "
@@ -246,14 +255,6 @@ def _constrained(eom, states, point, held, at, vals, number, parts, t0) -> State
     size = eom.n_state
     A_full = np.vstack([number(parts["dK/dx"], "dK/dx"), lower[:, :size]])
     B_full = np.vstack([number(parts["dK/dr"], "dK/dr") if r else np.zeros((eom.n_q, 0)), lower[:, size:]])
-    held_rows = eom.n_holonomic
-    c = sp.Matrix.vstack(sp.Matrix(eom.constraints)[:held_rows, :],
-                         A * sp.Matrix(eom.u) + sp.Matrix(eom.constraint_rate))
-    residual = number(c, "constraints").ravel()
-    if np.abs(residual).max(initial=0.0) > 1e-8 * (1 + np.abs(point_values := number(sp.Matrix(states), "x0")).max()):
-        worst = int(np.argmax(np.abs(residual)))
-        raise ValueError(f"x0 = {point_values.ravel().tolist()} violates constraint row {worst} of model {eom.name!r} "
-                         f"(residual {residual[worst]:.3g}): linearize about a consistent state (consistent_state)")
     basis = null_space(number(c.jacobian(states), "constraint Jacobian"))
     names = tuple(name for name, _ in eom.measurements)
     numbers = {p: sp.Float(v) for p, v in vals.items()}
