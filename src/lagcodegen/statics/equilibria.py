@@ -62,7 +62,8 @@ def equilibrium_conditions(eom: EquationsOfMotion) -> sp.ImmutableMatrix:
     Raises
     ------
     ValueError
-        If an entry depends on t: the model has no steady (relative) equilibrium.
+        If an entry depends on t (the search needs F at rest free of t; points where it vanishes at
+        every t, a Kapitza pendulum's upright and hanging positions, are not searched for).
     """
     require_closed_form(eom, "equilibrium_conditions")
     G = eom.forcing.xreplace({ui: 0 for ui in eom.u})
@@ -91,7 +92,9 @@ def _steady_entry(eom: EquationsOfMotion, i: int, g: sp.Expr) -> sp.Expr:
         return g.xreplace({t: 0})  # the value is the same at every t
     raise ValueError(
         f"equilibrium condition F[{i}] (coordinate {eom.q[i]}) of model {eom.name!r} depends on "
-        f"{t} at rest: {g}; no steady (relative) equilibrium exists")
+        f"{t} at rest: {g}; find_equilibria solves for configurations that are equilibria at every t "
+        "only where F at rest is free of t (a point where it vanishes for all t, such as a Kapitza "
+        "pendulum's upright, is not searched for: check it by substituting it into F)")
 
 
 def _independent_of_t(eom: EquationsOfMotion, g: sp.Expr, samples: int = 4) -> bool:
