@@ -245,6 +245,15 @@ def test_float_jacobian_equals_double(name, compiled_example, example_eom, rng):
 FIXED = {"g": 9.81, "l1": 1.3}
 
 
+def with_fixed(eom, p, fixed: dict) -> tuple:
+    """(every parameter, ``fixed`` values in place; the free ones alone, in p[] order)."""
+    names = [s.name for s in eom.parameters]
+    p = p.copy()
+    for name, value in fixed.items():
+        p[names.index(name)] = value
+    return p, [v for name, v in zip(names, p) if name not in fixed]
+
+
 @pytest.mark.compiler
 def test_fixed_parameters_give_the_same_numbers(compiled_example, example_eom, rng):
     eom = example_eom("double_pendulum")
@@ -252,12 +261,8 @@ def test_fixed_parameters_give_the_same_numbers(compiled_example, example_eom, r
     folded = compiled_example("double_pendulum", "double", fixed=FIXED)
     assert folded.layout.parameters == ("m1", "m2", "l2")
     assert dict(folded.layout.fixed) == FIXED
-    names = [s.name for s in eom.parameters]
     for t, x, p in random_inputs(eom, rng):
-        p = p.copy()
-        for key, value in FIXED.items():
-            p[names.index(key)] = value
-        p_free = [v for s, v in zip(names, p) if s not in FIXED]
+        p, p_free = with_fixed(eom, p, FIXED)
         want = compiled_outputs(free, t, x, p)
         got = compiled_outputs(folded, t, x, p_free)
         # folding changes the evaluation order (9.81 * 1.3 is one constant), not the maths
@@ -341,12 +346,8 @@ def test_a_parameter_fixed_at_one_inside_a_sine_folds(compiled_example, example_
     eom = example_eom("rolling_wheels")
     fixed = {"beta": 1.0, "g": 9.81}
     system = compiled_example("rolling_wheels", "double", fixed=fixed)
-    names = [s.name for s in eom.parameters]
     for t, x, p in random_inputs(eom, rng):
-        p = p.copy()
-        for name, value in fixed.items():
-            p[names.index(name)] = value
-        free = [v for name, v in zip(names, p) if name not in fixed]
+        p, free = with_fixed(eom, p, fixed)
         assert_close(compiled_outputs(system, t, x, free), sympy_reference(eom, t, x, p), RTOL["double"],
                      f"rolling_wheels {fixed} at x={x}")
 
