@@ -340,6 +340,33 @@ def test_a_number_like_pi_folds_with_any_parameter_fixed(tmp_path):
 
 
 @pytest.mark.compiler
+def test_a_piecewise_model_folds_its_fixed_parameters(tmp_path):
+    """Found in the last read of the fold: a Piecewise spring with any parameter fixed failed with
+    "'BooleanTrue' object has no attribute 'evalf'" (its condition True taken for a number). By hand,
+    V = k x^2 / 2 (x > 0), c k x^2 (else): ud = -k x / m, or -2 c k x / m; and a condition on a fixed
+    parameter (k > 1) is decided at build time."""
+    import sympy.physics.mechanics as me
+
+    from lagcodegen.pipeline import compile_model
+
+    x = me.dynamicsymbols("x")
+    m, k, c = sp.symbols("m k c", positive=True)
+    for condition in (x > 0, k > 1):
+        spring = sp.Piecewise((k * x ** 2 / 2, condition), (c * k * x ** 2, True))
+        model = Model("piecewise_spring", [x], [m, k, c], kinetic_energy=m * x.diff() ** 2 / 2,
+                      potential_energy=spring, parameter_values={m: 1.0, k: 2.0, c: 3.0})
+        for fixed in ({"k": 2.5}, {"m": 2.0, "k": 0.5, "c": 3.0}, {"c": 1.0}):
+            values = {"m": 1.5, "k": 2.0, "c": 3.0} | fixed
+            system = compile_model(model, outputs=("rhs",), fixed=fixed, cache_dir=tmp_path)
+            free = [values[name] for name in system.layout.parameters]
+            for position in (0.4, -0.4):
+                steep = position > 0 if condition == (x > 0) else values["k"] > 1
+                factor = 1.0 if steep else 2 * values["c"]
+                got = compiled_outputs(system, 0.0, [position, 0.0], free)["rhs"]
+                assert got == pytest.approx([0.0, -factor * values["k"] * position / values["m"]], rel=1e-14), fixed
+
+
+@pytest.mark.compiler
 def test_a_parameter_fixed_at_one_inside_a_sine_folds(compiled_example, example_eom, rng):
     """Found by review of the fold: rolling_wheels with beta = 1.0 (fixed exactly to 1 before CSE) and
     g fixed was refused ("its term sin(1) ..."). Against sympy at 30 digits with the same values."""

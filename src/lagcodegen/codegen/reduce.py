@@ -7,7 +7,7 @@ operations), the others after it, where every temporary that reads nothing but f
 becomes its value and the parameters themselves become named constants. Substituted before CSE,
 a number multiplying a sum is distributed over it by sympy (2.0*(x + y) -> 2.0*x + 2.0*y): the
 Whipple bicycle's dynamics kernel took 1704 operations with its 27 benchmark parameters folded
-that way, 1441 with none folded and 1407 folded after CSE. Numbers folded before CSE can also
+that way, 1393 with none folded and 1363 folded after CSE. Numbers folded before CSE can also
 combine terms (the centrifugal governor's dynamics: 13 operations against 26 after CSE), so both
 are built and the cheaper kept.
 """
@@ -259,7 +259,7 @@ def _reduce(name: str, labels: list, exprs: list, constants: Mapping | None = No
     after = count_operations([v for _, v in replacements] + list(reduced))
     # factoring leaves sums that several expressions now share (x + y taken out of two of them):
     # a second CSE finds those, and factoring again what it leaves (the Whipple bicycle's
-    # dynamics kernel: 1441 operations after the first round, 1368 after the second)
+    # dynamics kernel: 1441 operations after the first round, 1393 after the second)
     shared, rewritten = sp.cse([v for _, v in replacements] + list(reduced),
                                symbols=sp.numbered_symbols("cse_b"), order="canonical")
     if shared:
@@ -302,8 +302,8 @@ def _fold_constants(name: str, replacements: list, results: list, constants: Map
     definitions: list = []
     memo: dict = {}
 
-    def is_constant(expr) -> bool:
-        return expr.free_symbols <= values.keys()
+    def is_constant(expr) -> bool:  # a number-valued term (conditions and Piecewise pairs are folded inside)
+        return isinstance(expr, sp.Expr) and expr.free_symbols <= values.keys()
 
     def constant(expr):
         if expr.is_Number or expr in values:
@@ -341,7 +341,12 @@ def _fold_constants(name: str, replacements: list, results: list, constants: Map
 
 def _constant_value(name: str, expr, values: Mapping):
     """The number ``expr``, a term of fixed parameters and numbers only (pi, sqrt(2), cos(1) for a
-    parameter fixed at 1), is at their ``values``."""
+    parameter fixed at 1), is at their ``values``; a condition of them (k > 1), true or false."""
+    if not isinstance(expr, sp.Expr):  # a Boolean (a Symbol is both)
+        value = expr.xreplace(values)
+        if value in (sp.true, sp.false):
+            return value
+        raise KernelError(f"kernel {name!r}: its condition {expr} of fixed parameters only is {value} at their values")
     value = expr.xreplace(values).evalf(_DIGITS)
     if not (value.is_Number and value.is_finite and value.is_real):
         raise KernelError(f"kernel {name!r}: its term {expr} of fixed parameters only is "
