@@ -129,3 +129,10 @@ def test_an_inconsistent_state_is_named_before_any_rank_test():
     that lost rank"; by hand its loop closure is l1 + l2 - l3 - d = 0.1 + 0.35 - 0.3 - 0.4 = -0.25."""
     with pytest.raises(ValueError, match=r"violates constraint row 0 of model 'four_bar' \(residual -0\.25\)"):
         linearize_state(derive_equations(catalog.four_bar()), [0.0] * 6, values={})
+
+
+def test_first_order_eigenvalues_name_a_singular_mass_matrix():
+    """Found trying the new method with M0 = 0: numpy's bare "Singular matrix"."""
+    model = LinearModel((sp.Symbol("x"),), (0.0,), np.zeros((1, 1)), np.zeros((1, 1)), np.ones((1, 1)))
+    with pytest.raises(ValueError, match=r"M0 is singular at q0 = \(0\.0,\): no first-order form"):
+        model.first_order_eigenvalues()

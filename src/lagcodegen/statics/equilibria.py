@@ -421,8 +421,11 @@ class LinearModel:
         model with its damping and gyroscopic terms, shape (2 n,), sorted by real part."""
         M0, C0, K0 = (_numeric_matrix(A, name) for A, name in ((self.M0, "M0"), (self.C0, "C0"), (self.K0, "K0")))
         n = M0.shape[0]
-        A = np.block([[np.zeros((n, n)), np.eye(n)],
-                      [-np.linalg.solve(M0, K0), -np.linalg.solve(M0, C0)]])
+        try:
+            A = np.block([[np.zeros((n, n)), np.eye(n)],
+                          [-np.linalg.solve(M0, K0), -np.linalg.solve(M0, C0)]])
+        except np.linalg.LinAlgError:
+            raise ValueError(f"M0 is singular at q0 = {self.q0}: no first-order form") from None
         rates = np.linalg.eigvals(A)
         return rates[np.argsort(rates.real, kind="stable")]
 
