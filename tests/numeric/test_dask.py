@@ -188,3 +188,36 @@ def test_a_killed_worker_keeps_the_other_chunks(pendulum, distributed):
         failed[error.start:error.stop] = True
     assert not remote.completed and failed[:3].all() and not failed.all()
     assert_kept_members_equal(remote, local, failed)
+
+
+def test_a_worker_without_lagcodegen_is_named_before_anything_runs(pendulum, distributed):
+    """A worker whose environment cannot import lagcodegen (made so here by ``sys.modules[...] =
+    None`` in the worker process, which makes that import raise ModuleNotFoundError). Before, the
+    worker died unpickling its first chunk, its nanny restarted it, and sweep() waited for ever
+    (reproduced with a ``dask worker`` started without lagcodegen on its path, 2026-11-26). Now
+    sweep() raises at once, naming the worker and the import that failed."""
+    def without_lagcodegen():
+        import sys as sys_
+        sys_.modules["lagcodegen.run.sweep"] = None
+
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
+                                  dashboard_address=None) as cluster, distributed.Client(cluster) as client:
+        client.run(without_lagcodegen)
+        worker = next(iter(client.scheduler_info()["workers"]))
+        with pytest.raises(RuntimeError, match=rf"dask worker {worker} cannot import lagcodegen.run.sweep "
+                                               r"\(ModuleNotFoundError.*nothing was run"):
+            sweep(pendulum, GRID, client=client, chunk_size=3, **RUN)
+
+
+def test_a_worker_with_another_version_is_named(pendulum, distributed):
+    """A worker whose lagcodegen reports another version (set in the worker process): its kernels
+    and chunk format may differ, so sweep() refuses, naming both versions."""
+    def other_version():
+        import lagcodegen
+        lagcodegen.__version__ = "0.0.1-other"
+
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
+                                  dashboard_address=None) as cluster, distributed.Client(cluster) as client:
+        client.run(other_version)
+        with pytest.raises(RuntimeError, match=r"has another lagcodegen \(0.0.1-other\) than this process"):
+            sweep(pendulum, GRID, client=client, chunk_size=3, **RUN)

@@ -461,6 +461,7 @@ def _run_dask(job, xs, ps, out, chunks, client, progress) -> tuple[bool, list]:
     """Chunks as tasks on a Dask cluster; returns (not interrupted, [ChunkError ...])."""
     from dask.distributed import as_completed
 
+    _check_workers(client)
     bar = _progress_bar(len(xs), progress)
     futures = {client.submit(run_chunk, job, xs[a:b], ps[a:b], pure=False): (a, b) for a, b in chunks}
     errors = []
@@ -481,6 +482,27 @@ def _run_dask(job, xs, ps, out, chunks, client, progress) -> tuple[bool, list]:
     finally:
         if bar is not None:
             bar.close()
+
+
+def _check_workers(client) -> None:
+    """Every worker of ``client`` imports this lagcodegen. A worker that cannot unpickle a chunk
+    (lagcodegen missing from its environment) dies on it, its nanny restarts it, and the sweep
+    would wait for the chunk for ever; a worker with another version could run other kernels.
+    Checked with a stdlib function (pkgutil.resolve_name), which every worker can unpickle."""
+    from pkgutil import resolve_name
+
+    from .. import __version__
+
+    for target, what in (("lagcodegen.run.sweep:__name__", "cannot import lagcodegen.run.sweep"),
+                         ("lagcodegen:__version__", "has another lagcodegen")):
+        answers = client.run(resolve_name, target, on_error="return")
+        for worker, answer in sorted(answers.items()):
+            if isinstance(answer, BaseException):
+                raise RuntimeError(f"dask worker {worker} {what} ({_describe(answer)}): install lagcodegen "
+                                   f"{__version__} in the workers' environment; nothing was run")
+            if target.endswith("__version__") and answer != __version__:
+                raise RuntimeError(f"dask worker {worker} {what} ({answer}) than this process ({__version__}): "
+                                   f"install the same version on every worker; nothing was run")
 
 
 def _collect(future, bounds, errors: list):
