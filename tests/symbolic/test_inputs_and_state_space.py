@@ -304,3 +304,56 @@ def test_steady_eigenvalues_check_the_cyclic_coordinates_and_the_motion():
                                        potential_energy=-m * g * l * sp.cos(theta)))
     with pytest.raises(ValueError, match="mass matrix of model 'spherical' is singular at x0"):
         linearize_state(spherical, [0, 0, 0, 0])
+
+
+def _spring_from_a_moving_anchor():
+    """A mass on a spring whose anchor sits at the input r: V = k (x - r)^2 / 2, a measurement of
+    the stretch x - r (the input in V and in a measurement, not only in F)."""
+    x, r = me.dynamicsymbols("x r")
+    m, k, c = sp.symbols("m k c", positive=True)
+    return Model("moving_anchor", [x], [m, k, c], kinetic_energy=m * x.diff()**2 / 2,
+                 potential_energy=k * (x - r)**2 / 2, generalized_forces={x: -c * x.diff()}, inputs=[r],
+                 measurements={"stretch": x - r}, parameter_values={"m": 1.0, "k": 4.0, "c": 0.5})
+
+
+def test_hold_inputs_reaches_the_energy_and_the_measurements():
+    """Found by review: hold_inputs replaced the inputs in M and F only. With r held at 0.5 the
+    energy kernel failed to compile ("symbol r has no C name") and linearize_state's C kept the
+    symbol r. By hand: V = k (x - 1/2)^2 / 2, stretch = x - 1/2, so at x = 0.5, u = 0 the energy is
+    0, C = [1, 0], D is empty, and A = [[0, 1], [-k/m, -c/m]] = [[0, 1], [-4, -0.5]]."""
+    from lagcodegen.pipeline import compile_model
+    from lagcodegen.run.simulate import simulate
+
+    held = hold_inputs(derive_equations(_spring_from_a_moving_anchor()), {"r": 0.5})
+    assert held.inputs == ()
+    for expr in [held.potential_energy, *(e for _, e in held.measurements), *held.forcing]:
+        assert not any(s.name == "r" for s in sp.sympify(expr).free_symbols), expr
+    system = compile_model(held, methods=("rk4",), outputs=("rhs", "energy", "measurements"))
+    run = simulate(system, [0.5, 0.0], t_end=0.1, h=0.01, energy=True)
+    np.testing.assert_allclose(run.x[-1], [0.5, 0.0], atol=1e-15)  # at rest at the anchor
+    np.testing.assert_allclose(run.energy, 0.0, atol=1e-15)
+    np.testing.assert_allclose(run.measurements[:, 0], 0.0, atol=1e-15)
+    lin = linearize_state(held, [0.5, 0.0], values={})
+    np.testing.assert_allclose(np.asarray(lin.A, float), [[0, 1], [-4, -0.5]], atol=1e-12)
+    np.testing.assert_allclose(np.asarray(lin.C, float), [[1, 0]], atol=1e-12)
+
+
+def test_steady_motion_of_a_driven_model_asks_for_its_inputs():
+    """Found by review: steady_motion on a model with inputs failed with sympy's bare "Cannot
+    convert expression to float". Now it names the inputs (as find_equilibria does), and with
+    inputs= holds them: a mass on a turntable spinning at w = 2 with a spring k (x - L) has, by
+    hand, k (x - L) = m x w^2, so x = k L / (k - m w^2) = 10 / 6 for m = 1, k = 10, L = 1; a
+    constant torque tau = 0 keeps the spin steady."""
+    from lagcodegen.statics.steady import steady_motion
+
+    x, phi, tau = me.dynamicsymbols("x phi tau")
+    m, k, L = sp.symbols("m k L", positive=True)
+    eom = derive_equations(Model("turntable", [x, phi], [m, k, L],
+                                 kinetic_energy=m * (x.diff()**2 + x**2 * phi.diff()**2) / 2,
+                                 potential_energy=k * (x - L)**2 / 2, generalized_forces={phi: tau}, inputs=[tau],
+                                 parameter_values={"m": 1.0, "k": 10.0, "L": 1.0}))
+    given = {"x": 1.0, eom.u[1].name: 2.0}
+    with pytest.raises(ValueError, match="model 'turntable' has inputs tau: pass their values"):
+        steady_motion(eom, given, ["x"], [eom.u[0].name])
+    motion = steady_motion(eom, given, ["x"], [eom.u[0].name], inputs={"tau": 0.0})
+    assert motion.values["x"] == pytest.approx(10 / 6, rel=1e-12)

@@ -604,10 +604,24 @@ def hold_inputs(eom: EquationsOfMotion, inputs: Any) -> EquationsOfMotion:
     if inputs is None:
         raise ValueError(f"model {eom.name!r} has inputs {', '.join(map(str, eom.inputs))}: pass their "
                          "values, e.g. inputs={" + ", ".join(f"'{r}': 0.0" for r in eom.inputs) + "}")
-    held = input_point(eom, inputs)
-    table = dict(zip(eom.inputs, held))
-    return dataclasses.replace(eom, forcing=sp.ImmutableMatrix(eom.forcing.xreplace(table)),
-                               kinematics=sp.ImmutableMatrix(eom.kinematics.xreplace(table)), inputs=())
+    table = dict(zip(eom.inputs, input_point(eom, inputs)))
+
+    def held(expr):
+        return expr.xreplace(table) if isinstance(expr, sp.Basic) else expr
+
+    # every expression, not only M and F: found by review, an input left in V or a measurement
+    # failed to compile ("symbol r has no C name") and stayed a symbol in linearize's C matrix
+    fields = {name: held(getattr(eom, name)) for name in (
+        "mass_matrix", "forcing", "kinematics", "kinetic_energy", "potential_energy", "constraints",
+        "constraint_jacobian", "constraint_rate", "constraint_bias", "reaction_equations", "configuration")}
+    tree = eom.tree
+    if tree is not None:
+        tree = dataclasses.replace(tree, assignments=tuple((s, held(e)) for s, e in tree.assignments),
+                                   accelerations=tuple(map(held, tree.accelerations)),
+                                   pivots=tuple(map(held, tree.pivots)), energy=held(tree.energy),
+                                   points=tuple((n, tuple(map(held, xyz))) for n, xyz in tree.points))
+    return dataclasses.replace(eom, **fields, points=tuple((n, held(e)) for n, e in eom.points),
+                               measurements=tuple((n, held(e)) for n, e in eom.measurements), tree=tree, inputs=())
 
 
 def input_point(eom: EquationsOfMotion, inputs: Any) -> tuple:

@@ -22,7 +22,7 @@ import numpy as np
 import sympy as sp
 
 from ..symbolic.derive import EquationsOfMotion
-from .equilibria import named_point, require_closed_form, resolve_values, substitute_values
+from .equilibria import hold_inputs, named_point, require_closed_form, resolve_values, substitute_values
 
 
 @dataclass(frozen=True)
@@ -41,7 +41,7 @@ class SteadyMotion:
 
 
 def steady_motion(eom: EquationsOfMotion, given: Mapping, unknowns: Sequence[str], steady: Sequence[str], *,
-                  values: Mapping | None = None, t: float = 0.0, tol: float = 1e-10) -> SteadyMotion:
+                  values: Mapping | None = None, t: float = 0.0, tol: float = 1e-10, inputs=None) -> SteadyMotion:
     """Solve for a steady motion of ``eom``.
 
     Parameters
@@ -55,6 +55,8 @@ def steady_motion(eom: EquationsOfMotion, given: Mapping, unknowns: Sequence[str
         Speeds whose accelerations vanish.
     values : mapping parameter -> float, optional
         Parameter values (default: the model's).
+    inputs : sequence or mapping, optional
+        The inputs held constant (`hold_inputs`); required when the model has inputs.
 
     Raises ValueError naming the culprit: an unknown state name, a count of unknowns that does not
     match the equations, or no convergence (with the residual reached).
@@ -62,6 +64,7 @@ def steady_motion(eom: EquationsOfMotion, given: Mapping, unknowns: Sequence[str
     from scipy.optimize import root
 
     require_closed_form(eom, "steady_motion")
+    eom = hold_inputs(eom, inputs)  # found by review: a driven model failed with "Cannot convert expression to float"
 
     if not steady:
         raise ValueError("steady motion: name at least one steady speed")
@@ -113,7 +116,7 @@ def steady_motion(eom: EquationsOfMotion, given: Mapping, unknowns: Sequence[str
 
 
 def steady_eigenvalues(eom: EquationsOfMotion, motion: SteadyMotion, cyclic: Sequence[str], speeds: Sequence[str],
-                       *, values: Mapping | None = None, t: float = 0.0) -> np.ndarray:
+                       *, values: Mapping | None = None, t: float = 0.0, inputs=None) -> np.ndarray:
     """Eigenvalues of the linearization about a steady motion, in the states it holds steady.
 
     A steady motion is an equilibrium only of the reduced system without its ``cyclic`` coordinates
@@ -126,6 +129,7 @@ def steady_eigenvalues(eom: EquationsOfMotion, motion: SteadyMotion, cyclic: Seq
     Dynamics of Nonholonomic Systems, ch. 4, for steady motions of a rolling disc).
     """
     require_closed_form(eom, "steady_eigenvalues")
+    eom = hold_inputs(eom, inputs)
     names = list(motion.names)
     q_names = [s.name for s in eom.q]
     u_names = [s.name for s in eom.u]
