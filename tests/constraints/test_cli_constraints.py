@@ -29,3 +29,67 @@ def test_an_inconsistent_x0_is_refused_naming_the_constraint(capsys):
     code = main(["simulate", "cartesian_pendulum", "--t-end", "0.1", "--h", "1e-3", "--x0", "x=2"])
     error = capsys.readouterr().err
     assert code == 2 and error.startswith("lagcodegen simulate: error: --x0") and "constraint 0" in error
+
+
+SLEIGH = '''
+import sympy as sp, sympy.physics.mechanics as me
+from lagcodegen import Model
+t = me.dynamicsymbols._t
+x, y, theta = me.dynamicsymbols("x y theta")
+m, I, a = sp.symbols("m I a", positive=True)
+xc, yc = x + a * sp.cos(theta), y + a * sp.sin(theta)
+T = m * (xc.diff(t) ** 2 + yc.diff(t) ** 2) / 2 + I * theta.diff(t) ** 2 / 2
+blade = -x.diff(t) * sp.sin(theta) + y.diff(t) * sp.cos(theta)
+model = Model("sleigh", [x, y, theta], [m, I, a], kinetic_energy=T, motion_constraints=[blade],
+              parameter_values={"m": 1.0, "I": 0.5, "a": 0.3}, dependent_speeds=[y],
+              points={"blade": (x, y), "centre": (xc, yc)})
+'''
+
+
+def _sleigh_reference(theta0, x_d0, theta_d0, m, inertia, a, t_end):
+    """The Chaplygin sleigh in its blade frame (Neimark and Fufaev; Bloch, Nonholonomic Mechanics
+    and Control, 1.7): v' = a w^2, w' = -m a v w / (I + m a^2), theta' = w, x' = v cos(theta),
+    y' = v sin(theta), v the speed along the blade; scipy DOP853 at rtol = atol = 1e-12."""
+    from scipy.integrate import solve_ivp
+
+    def rhs(_, s):
+        x, y, theta, v, w = s
+        return [v * np.cos(theta), v * np.sin(theta), w, a * w**2, -m * a * v * w / (inertia + m * a**2)]
+
+    start = [0.0, 0.0, theta0, x_d0 / np.cos(theta0), theta_d0]
+    return solve_ivp(rhs, (0, t_end), start, method="DOP853", rtol=1e-12, atol=1e-12).y[:3, -1]
+
+
+@pytest.mark.compiler
+def test_the_command_line_runs_a_model_with_eliminated_speeds(tmp_path, capsys):
+    """Found by review: simulate, animate and sweep refused every model with eliminated dependent
+    speeds ("output 'constraints' needs constraints with multipliers"), an output the user had not
+    asked for; and the --plot of a model with fewer speeds than coordinates left theta out."""
+    import lagcodegen.cli.runs as runs
+
+    model = tmp_path / "sleigh.py"
+    model.write_text(SLEIGH)
+    out, plot = tmp_path / "run.npz", tmp_path / "run.png"
+    x0 = "x=0,y=0,x_d=0.5,theta_d=2,theta=-0.8"
+    drawn = []
+    real_plot = runs.plot_coordinates
+
+    def plot_coordinates(*args):
+        figure = real_plot(*args)
+        drawn.extend(line.get_label() for line in figure.axes[0].get_lines())
+        return figure
+
+    runs.plot_coordinates = plot_coordinates
+    try:
+        code = main(["simulate", str(model), "--t-end", "1", "--h", "1e-3", "--x0", x0, "--out", str(out),
+                     "--plot", str(plot)])
+    finally:
+        runs.plot_coordinates = real_plot
+    assert code == 0, capsys.readouterr().err
+    assert drawn == ["x", "y", "theta"] and plot.is_file()
+    run = np.load(out)
+    names = [str(n) for n in run["names"]]
+    got = [run["x"][-1, names.index(n)] for n in ("x", "y", "theta")]
+    np.testing.assert_allclose(got, _sleigh_reference(-0.8, 0.5, 2.0, 1.0, 0.5, 0.3, 1.0), atol=1e-9)
+    assert main(["sweep", str(model), "--t-end", "0.1", "--h", "1e-3", "--x0", x0, "--grid", "m=0.5:2:3"]) == 0
+    assert "status: ok 3" in capsys.readouterr().out

@@ -164,25 +164,29 @@ def consistent_x0(eom, x0: dict, values: dict, command: str) -> dict:
 def compile_for(eom, method: str, fixed: dict, *, energy: bool, points: bool):
     """The model compiled with one integrator and only the outputs the run records (the outputs
     the method needs, such as the Jacobian, are added by `compile_model`)."""
+    from ..codegen.outputs import applicable_outputs
     from ..native.build import BuildError
     from ..pipeline import compile_model
 
     outputs = ["rhs"] + ["energy"] * (energy and eom.energy is not None) + ["points"] * (points and bool(eom.points))
     outputs += ["measurements"] * bool(eom.measurements)
-    outputs += ["constraints", "multipliers"] if eom.m else []  # residuals, multipliers, --project
+    # residuals, multipliers, --project: for constraints with multipliers only (found by review: a
+    # model with eliminated dependent speeds was refused, "output 'constraints' needs multipliers")
+    outputs = applicable_outputs(eom, outputs)
     try:
         return compile_model(eom, outputs=outputs, fixed=fixed or None, methods=(method,))
     except BuildError as error:
         raise RunFailed(f"building {eom.name} with {method} failed: {error}") from None
 
 
-def plot_coordinates(trajectory, title: str):
-    """Figure of every coordinate against t (a dotted line where a failed run stopped)."""
+def plot_coordinates(trajectory, title: str, n_q: int):
+    """Figure of the ``n_q`` coordinates against t (a dotted line where a failed run stopped)."""
     from matplotlib.figure import Figure  # Agg canvas via savefig; no pyplot
 
     fig = Figure(figsize=(8.0, 4.5), dpi=100, layout="constrained")
     ax = fig.add_subplot()
-    for j, name in enumerate(trajectory.names[:len(trajectory.names) // 2]):
+    # n_q, not half the state: found by review, a model with fewer speeds than coordinates lost some
+    for j, name in enumerate(trajectory.names[:n_q]):
         ax.plot(trajectory.t, trajectory.x[:, j], linewidth=0.9, label=name)
     if not trajectory.ok:
         ax.axvline(trajectory.failed_time, color="red", linestyle=":", label=f"stopped: {trajectory.status.name}")
@@ -256,7 +260,8 @@ def cmd_simulate(args) -> int:
                  fixed_values=np.array([float(v) for _, v in layout.fixed]), **extra)
         print(f"wrote {args.out}")
     if args.plot:
-        plot_coordinates(run, f"{eom.name}: {run.method}, h = {args.h:g} ({run.message})").savefig(args.plot, dpi=110)
+        title = f"{eom.name}: {run.method}, h = {args.h:g} ({run.message})"
+        plot_coordinates(run, title, eom.n_q).savefig(args.plot, dpi=110)
         print(f"wrote {args.plot}")
     return EXIT_OK if run.ok else EXIT_FAILED
 
