@@ -154,3 +154,55 @@ def test_c_and_d_of_the_measurements(cart_pole_example):
                   inputs=[F], measurements={"net_force": F - c * x.diff()})
     exact = linearize_state(derive_equations(model), [0, 0], [0])
     assert exact.C == sp.Matrix([[0, -c]]) and exact.D == sp.Matrix([[1]])
+
+
+def test_a_step_jacobian_checks_what_the_step_checks(cart_pole):
+    """Found by review: step_jacobian_rk4 returned OK with a NaN new state (the cart position, which
+    no force reads, NaN) and with a NaN time, where step_rk4 returns NONFINITE_STATE and
+    BAD_ARGUMENT for the same call. Now both agree, and a failed step leaves t and x as they were."""
+    from lagcodegen.status import Status
+
+    _, plant, p = cart_pole
+    ffi, lib, prefix = plant.ffi, plant.lib, plant.layout.prefix
+    n = plant.layout.n_state
+    work = ffi.new("double[]", int(getattr(lib, f"{prefix.upper()}_WORK_JACOBIAN_RK4")))
+    Fx, Fr = ffi.new("double[]", n * n), ffi.new("double[]", n * len(plant.layout.inputs))
+    r, params = ffi.new("double[]", [0.0]), ffi.new("double[]", p)
+
+    def both(state, time, h):
+        codes, states = [], []
+        for step in ("step_jacobian_rk4", "step_rk4"):
+            t, x = ffi.new("double *", time), ffi.new("double[]", state)
+            args = (t, x, r, params, h, Fx, Fr, work) if step.startswith("step_jacobian") else \
+                (t, x, r, params, h, work)
+            codes.append(getattr(lib, f"{prefix}_{step}")(*args))
+            states.append(([x[i] for i in range(n)], t[0]))
+        return codes, states
+
+    names = plant.layout.coordinates + plant.layout.speeds
+    nan_cart = [np.nan if name == names[0] else 0.1 for name in names]
+    codes, states = both(nan_cart, 0.0, 0.01)
+    assert codes == [Status.NONFINITE_STATE] * 2
+    for x, t in states:
+        assert t == 0.0 and np.isnan(x[0]) and x[1:] == nan_cart[1:]  # left as it was
+    codes, _ = both([0.0, 0.1, 0.0, 0.0], np.nan, 0.01)
+    assert codes == [Status.BAD_ARGUMENT] * 2
+    codes, _ = both([0.0, 0.1, 0.0, 0.0], 0.0, np.inf)
+    assert codes == [Status.BAD_ARGUMENT] * 2
+    big = [1.7e308 if name == names[0] else 0.0 for name in names]
+    big[len(plant.layout.coordinates)] = 1e308  # the cart's speed: x + h v overflows
+    codes, _ = both(big, 0.0, 1.0)
+    assert codes == [Status.NONFINITE_STATE] * 2
+
+
+def test_a_step_jacobian_without_an_explicit_method_is_refused(driven_oscillator):
+    """Found by review: emitted with only implicit methods, or none, the step_jacobian output was
+    silently left out."""
+    from lagcodegen.codegen.csyntax import EmitError
+    from lagcodegen.codegen.reduce import reduce_expressions
+    from lagcodegen.codegen.render import render_sources
+
+    system = reduce_expressions(derive_equations(driven_oscillator("jac_refused")), ("rhs", "jacobian", "step_jacobian"))
+    for methods in ((), ("implicit_midpoint",)):
+        with pytest.raises(EmitError, match="output 'step_jacobian' is the Jacobian of an explicit step"):
+            render_sources(system, "double", methods=list(methods))

@@ -67,6 +67,10 @@ def stepper_context(system, names, real: str, methods: list) -> dict:
                "pivot_collapse_text": f"{PIVOT_COLLAPSE[real]:.0e}".replace("e-0", "e-"),
                "n_pivots": n + system.n_constraints, "has_dependent": bool(system.u_dependent),
                "step_jacobians": []} | input_context(system, names, real)
+    if "step_jacobian" in system.outputs and not any(get_scheme(m).stepper == KIND_EXPLICIT for m in methods):
+        # found by review: emitted without one, the output was silently left out
+        raise EmitError("output 'step_jacobian' is the Jacobian of an explicit step: add an explicit method "
+                        f"(e.g. rk4) to methods ({', '.join(methods) if methods else 'none given'})")
     if not methods:
         return context
     if "rhs" not in system.outputs and "accel" not in system.outputs:
@@ -216,7 +220,9 @@ def _step_jacobian_context(system, context: dict, prefix: str, real: str, method
             f"One step of {scheme.title or scheme.name} as {prefix}_step_{scheme.name}, also writing its exact "
             f"Jacobians Fx = dx+/dx (row-major {N} x {N})"
             + (f" and Fr = dx+/dr ({N} x {n_r}, the inputs held)" if n_r else "")
-            + f"; work holds {work} values.", [])
+            + f"; work holds {work} values. As the step, LCG_BAD_ARGUMENT for a t or h that is not finite and "
+            "LCG_NONFINITE_STATE for a new state or Jacobian that is not finite; a failed step leaves t and x as "
+            "they were.", [])
         context["exported"].append(record)
         rows.append({"name": scheme.name, "stages": s, "work": work,
                      "work_macro": f"{prefix.upper()}_WORK_JACOBIAN_{scheme.name.upper()}"})
