@@ -295,3 +295,78 @@ def test_cli_emit_writes_bounded_file_names(tmp_path, capsys):
     written = sorted(p.name for p in (tmp_path / "out").iterdir())
     assert len(written) == 2 and all(len(name) <= 80 for name in written), written
     assert written[0].startswith("lcg_pendulumpendulum")
+
+
+def _declared_identifiers(sources) -> list:
+    """Every identifier the generated C declares (locals, arguments, arrays), in sorted order."""
+    declared = set()
+    for text in (sources.header, sources.source):
+        declared |= set(re.findall(r"\b(?:double|float|int|long)\s+(?:const\s+)?\**\s*([A-Za-z_]\w*)", text))
+    return sorted(name for name in declared if not name.lower().startswith("lcg_"))
+
+
+def _kinds():
+    """(plain model builder, outputs, methods): a driven plant with every output an embedded user
+    asks for, a recursive tree, a model with an eliminated dependent speed; each takes extra
+    parameters, all entering through their mean S (so any set of them gives the same physics)."""
+    import sympy.physics.mechanics as me
+
+    from lagcodegen import Link
+
+    def driven(name, extra):
+        x, F = me.dynamicsymbols("x F")
+        S = sum(extra, sp.S.Zero) / len(extra) if extra else sp.Integer(4)
+        return Model(name, [x], list(extra), kinetic_energy=x.diff()**2 / 2, potential_energy=S * x**2 / 2,
+                     generalized_forces={x: F - x.diff() / 2}, inputs=[F], measurements={"stretch": x},
+                     points={"bob": (x, 0)}, parameter_values={e: 4.0 for e in extra})
+
+    def tree(name, extra):
+        q = me.dynamicsymbols("q")
+        S = sum(extra, sp.S.Zero) / len(extra) if extra else sp.Float(9.81)
+        return Model(name, [q], list(extra), tree=[Link("rod", None, "revolute", (0, 0, 1), q, mass=1,
+                                                       center=(0, -1, 0))],
+                     gravity=(0, -S, 0), parameter_values={e: 9.81 for e in extra}, formulation="recursive")
+
+    def eliminated(name, extra):
+        t = TIME
+        x, y, theta = me.dynamicsymbols("x y theta")
+        S = sum(extra, sp.S.Zero) / len(extra) if extra else sp.Float(0.3)
+        xc, yc = x + S * sp.cos(theta), y + S * sp.sin(theta)
+        T = (xc.diff(t)**2 + yc.diff(t)**2) / 2 + theta.diff(t)**2 / 4
+        blade = -x.diff(t) * sp.sin(theta) + y.diff(t) * sp.cos(theta)
+        return Model(name, [x, y, theta], list(extra), kinetic_energy=T, motion_constraints=[blade],
+                     dependent_speeds=[y], parameter_values={e: 0.3 for e in extra})
+
+    return {"driven": (driven, ("rhs", "jacobian", "step_jacobian", "energy", "points", "measurements"),
+                       ("rk4", "implicit_midpoint")),
+            "tree": (tree, ("rhs", "jacobian", "energy", "points"), ("rk4", "implicit_midpoint")),
+            "eliminated": (eliminated, ("rhs",), ("rk4",))}
+
+
+@pytest.mark.compiler
+@pytest.mark.parametrize("kind", ["driven", "tree", "eliminated"])
+def test_every_identifier_of_the_generated_c_can_name_a_parameter(kind, tmp_path):
+    """Found by review: a parameter named gauge (the dynamics' argument), Br (a local of the
+    driven jacobian) or pivot_0 (of the recursive dynamics) failed to compile. Here every
+    identifier the plain model's C declares names a parameter of the same physics at once; the
+    kernels must build and give the plain model's numbers (the second route: only names differ)."""
+    from lagcodegen.pipeline import compile_model
+    from lagcodegen.run.simulate import simulate
+
+    build, outputs, methods = _kinds()[kind]
+    plain = build(f"names_plain_{kind}", [])
+    plain_sources = render_sources(reduce_expressions(derive_equations(plain), outputs), methods=list(methods))
+    layout = plain_sources.layout
+    own = {*layout.coordinates, *layout.speeds, *layout.dependent_speeds, *layout.inputs}  # its own symbols
+    names = [n for n in _declared_identifiers(plain_sources) if n not in own]
+    assert {"gauge", "status", "work"} <= set(names)  # the names of the review and the common ones
+    hostile = build(f"names_hostile_{kind}", [sp.Symbol(n, positive=True) for n in names])
+    runs = []
+    for model in (plain, hostile):
+        system = compile_model(model, outputs=outputs, methods=methods, cache_dir=tmp_path)
+        x0 = {"x": 0.3, "x_d": 0.1} if kind == "driven" else {"q": 0.5} if kind == "tree" else \
+            {"x": 0.0, "y": 0.0, "theta": -0.8, "x_d": 0.5, "theta_d": 2.0}
+        extra = {"inputs": [0.0]} if kind == "driven" else {}
+        runs.append(simulate(system, x0, t_end=0.5, h=1e-3, **extra))
+    assert runs[0].ok and runs[1].ok
+    np.testing.assert_allclose(runs[1].x, runs[0].x, rtol=1e-12, atol=1e-12)

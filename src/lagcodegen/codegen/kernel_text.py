@@ -18,10 +18,14 @@ if TYPE_CHECKING:
 #: local names the generated code uses itself; user symbols are renamed around them
 RESERVED = {"t", "x", "p", "out", "M", "F", "ud", "qd", "xdot", "B", "J", "c", "status", "work", "h",
             "i", "j", "k", "m", "s", "method", "stride", "n_steps", "steps_done", "A", "C", "Y", "z",
-            "lam", "Q", "phi", "phi_t", "project", "part_values"}
+            "lam", "Q", "phi", "phi_t", "project", "part_values",
+            # the kernels' own parameters and locals (found by review: a parameter named gauge, the
+            # dynamics' argument, failed to compile with "redeclared as different kind of symbol")
+            "gauge", "H", "det", "entry", "factor", "pivot", "saved", "scale", "size", "sum", "swap", "width",
+            "xs", "fp", "fm", "angle", "acc", "cols", "count", "n", "product", "terms", "positions", "t0"}
 #: ... and those of the functions of a model with inputs or measurements (only then, so that the
 #: names of the other models' symbols do not change)
-DRIVEN_RESERVED = {"r", "dr", "rs", "r0", "r1", "y", "Fx", "Fr", "Jr", "hold", "inputs", "context"}
+DRIVEN_RESERVED = {"r", "dr", "rs", "r0", "r1", "y", "Fx", "Fr", "Jr", "Br", "hold", "inputs", "context"}
 #: ... and those of the functions of a model whose dependent speeds are eliminated
 DEPENDENT_RESERVED = {"u_dep", "dep_status", "AD", "b", "Mfull", "Fvec", "gamma", "AD_dep", "scale_dep"}
 
@@ -40,10 +44,11 @@ class Names:
 
 
 def _solver_locals(n: int) -> set:
-    """Locals of the unrolled LDL^T code (M_j_k, F_j, D_j, ...): user names must avoid them."""
+    """Locals of the unrolled LDL^T code (M_j_k, F_j, D_j, ...) and of the recursive dynamics
+    (pivot_j): user names must avoid them."""
     names = set()
     for j in range(n):
-        names |= {f"F_{j}", f"D_{j}", f"Dinv_{j}", f"y_{j}", f"w_{j}"}
+        names |= {f"F_{j}", f"D_{j}", f"Dinv_{j}", f"y_{j}", f"w_{j}", f"pivot_{j}"}
         for k in range(n):
             names |= {f"M_{j}_{k}", f"L_{j}_{k}", f"LD_{j}_{k}"}
     return names
