@@ -221,6 +221,39 @@ def test_a_float_kernel_reads_row_k_at_step_k(tmp_path, driven_oscillator):
     assert np.abs(swept.x_final[0] - exact[-1]).max() < 1e-5 * np.abs(exact).max()
 
 
+def test_a_float_kernel_refuses_times_it_cannot_resolve(tmp_path, driven_oscillator):
+    """Found by review: past t/h of about 2^22 float cannot tell t0 + k h from its neighbours, and
+    rows per step were read a row off with status OK (94 of 201 at t0 = 1e4, h = 1e-3). Float's
+    spacing is 2^-11 (4.9e-4, above h/4) from t = 4096 and 2^-12 (2.4e-4) just below it, where the
+    rows still come out exactly (the reference: the rows themselves). A model without inputs is
+    only warned (its recorded times are that coarse); a double kernel is not."""
+    from lagcodegen.run.arguments import FloatTimeWarning
+
+    system = compile_model(driven_oscillator("driven_oscillator_late_f32"), methods=("rk4",), precision="float",
+                           cache_dir=tmp_path)
+    h, n = 1e-3, 200
+    rows = np.arange(n + 1) % 7 * 1.0
+    t0 = 4096 - (n + 1) * h
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", FloatTimeWarning)
+        run = simulate(system, {"x": 0.0}, t0=t0, t_end=t0 + n * h, h=h, inputs=rows, check_stability=False)
+    np.testing.assert_array_equal(run["F"], rows)
+    for start in (4096.0, 1e4):
+        with pytest.raises(ValueError, match=r"spacing near t = .* more than h/4 = 0.00025: the inputs F would "
+                                             r"be read at the wrong steps"):
+            simulate(system, {"x": 0.0}, t0=start, t_end=start + n * h, h=h, inputs=rows)
+        with pytest.raises(ValueError, match="the inputs F would be read at the wrong steps"):
+            sweep(system, {"k": [K]}, x0={"x": 0.0}, t0=start, t_end=start + n * h, h=h, inputs=rows)
+    x = me.dynamicsymbols("x")
+    free = Model("free_oscillator_late", [x], [], kinetic_energy=x.diff()**2 / 2, potential_energy=2 * x**2)
+    for precision, warned in (("float", True), ("double", False)):
+        plain = compile_model(free, methods=("rk4",), precision=precision, cache_dir=tmp_path)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            simulate(plain, {"x": 1.0}, t0=1e4, t_end=1e4 + n * h, h=h, check_stability=False)
+        assert any(issubclass(w.category, FloatTimeWarning) for w in caught) == warned
+
+
 def test_solve_reference_takes_an_array_as_the_step_function_it_is(oscillator):
     # found by review: the array's repeated knot times made empty segments (a TypeError). The exact
     # zero-order-hold map x+ = e^(A h) x + A^-1 (e^(A h) - I) B r_k is the reference.

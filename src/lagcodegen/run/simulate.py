@@ -18,6 +18,7 @@ from ..native.build import CompiledSystem
 from ..status import Status
 from .arguments import (  # noqa: F401
     check_output_size,
+    check_time_resolution,
     flag,
     keyed_by_name,
     method_name,
@@ -308,6 +309,7 @@ def simulate(system: CompiledSystem, x0, t_end: float, h: float, method: str = "
     method = compiled_method(system, method)
     n_steps = step_count(t0, t_end, h)
     t0, h = float(t0), float(h)
+    check_time_resolution(system.layout, t0, t0 + n_steps * h, h)
     stride = stride_within(stride, n_steps)
     x = initial_state(system, x0)
     p = parameter_vector(system, params)

@@ -32,6 +32,7 @@ from ..status import CHUNK_FAILED, NOT_RUN, SWEEP_STATUS_NAMES, Status  # noqa: 
 from .arguments import (
     check_memory,
     check_output_size,
+    check_time_resolution,
     flag,
     missing_constraints,
     output_bytes,
@@ -213,6 +214,7 @@ def sweep(system: CompiledSystem, grid: Mapping | None = None, *, members: Mappi
     method = compiled_method(system, method)
     n_steps = step_count(t0, t_end, h)
     t0, h = float(t0), float(h)
+    check_time_resolution(layout, t0, t0 + n_steps * h, h)
     stride = stride_within(stride, n_steps)
     trajectories, track_energy, project = (flag(v, name) for name, v in (
         ("trajectories", trajectories), ("track_energy", track_energy), ("project", project)))
