@@ -51,3 +51,42 @@ def test_the_colorbar_names_every_status(status_figure):
     ticks = {round(t): label.get_text() for t, label in zip(bar.get_yticks(), bar.get_yticklabels())}
     assert ticks == CODES
     assert np.all(np.diff(sorted(ticks)) == 1)
+
+
+@pytest.fixture(scope="module")
+def completed_grid(compiled_example):
+    """A 2 x 2 grid of the double pendulum whose members all complete."""
+    system = compiled_example("double_pendulum", outputs=("rhs", "energy"), methods=("rk4",))
+    result = sweep(system, {"m2": (1.0, 2.0), "l2": (0.5, 1.0)}, x0=(0.5, 0.0, 0.0, 0.0), t_end=0.1, h=0.01)
+    assert not result.status.any()
+    return result
+
+
+def _legend(figure) -> list:
+    return [text.get_text() for text in figure.legends[0].get_texts()]
+
+
+def _cells(figure, colour) -> np.ndarray:
+    """The grid cells (row-major, y then x) painted ``colour`` by a single-colour mesh."""
+    for mesh in figure.axes[0].collections:
+        colours = mesh.cmap.colors if hasattr(mesh.cmap, "colors") else ()
+        if len(colours) == 1 and matplotlib.colors.to_hex(colours[0]) == matplotlib.colors.to_hex(colour):
+            return ~np.ma.getmaskarray(mesh.get_array()).ravel()
+    return np.zeros(0, bool)
+
+
+def test_infinite_values_are_not_drawn_as_missing(completed_grid):
+    """Found by review: members that completed with an infinite value (an energy error that
+    overflowed) were white and counted as "no value (NaN)", so the worst members of a sweep looked
+    like members without data. Here the member values are given, so the expected cells are known:
+    grid order is m2 then l2, the map's rows m2 (y) and columns l2 (x)."""
+    values = np.array([np.inf, np.nan, 1.0, -np.inf])
+    figure = plot_heatmap(completed_grid, values)
+    legend = _legend(figure)
+    assert "+inf: 1" in legend and "-inf: 1" in legend and "no value (NaN): 1" in legend
+    assert list(_cells(figure, "#ff1493")) == [True, False, False, False]
+    assert list(_cells(figure, "#00bfff")) == [False, False, False, True]
+    logged = plot_heatmap(completed_grid, np.array([0.0, 1.0, 10.0, np.inf]), log=True)
+    legend = _legend(logged)
+    assert "<= 0 (no place on the log scale): 1" in legend and "+inf: 1" in legend
+    assert not any(text.startswith("no value") for text in legend)

@@ -36,6 +36,8 @@ FAILURE_FIELDS = ("blowup_time", "steps_done", "status")
 _LABELS = {"energy_error": "max |E - E0| over the run", "blowup_time": "time of failure",
            "steps_done": "steps done", "status": "status"}
 _FAILED_GREY, _NOT_RUN_GREY = "0.45", "0.82"
+#: +inf, -inf and (log scale) values <= 0 of completed members: colours no default colormap takes
+_INFINITE_COLOURS, _NONPOSITIVE_COLOUR = ("#ff1493", "#00bfff"), "#f5deb3"
 
 
 def resolve_field(field: str, coordinate_names: Sequence[str], state_names: Sequence[str]) -> tuple:
@@ -245,7 +247,8 @@ def plot_heatmap(result: SweepResult, field: str | np.ndarray, *, title: str | N
         _draw_values(fig, ax, edges, z, hidden, log, cmap, label or default_label)
     if nan_label is None:
         nan_label = "completed (no failure)" if name == "blowup_time" else "no value (NaN)"
-    handles = _draw_failed(ax, edges, status, z, mask_failed and name != "status", nan_label)
+    handles = _draw_failed(ax, edges, status, z, mask_failed and name != "status", nan_label,
+                           log and name != "status")
     ax.set_xscale("log" if x_log else "linear")
     ax.set_yscale("log" if y_log else "linear")
     for axis, values, is_log in ((ax.xaxis, x_axis, x_log), (ax.yaxis, y_axis, y_log)):
@@ -342,8 +345,9 @@ def _draw_status(fig, ax, edges, status, label) -> None:
     bar.ax.set_yticklabels(names)
 
 
-def _draw_failed(ax, edges, status, z, paint: bool, nan_label: str) -> list:
-    """Grey cells for failed / not-run members (when ``paint``); legend handles for them and NaN."""
+def _draw_failed(ax, edges, status, z, paint: bool, nan_label: str, log: bool = False) -> list:
+    """Grey cells for failed / not-run members (when ``paint``), cells of their own colour for
+    infinite values (and values <= 0 on a log scale); legend handles for them and NaN."""
     from matplotlib.colors import ListedColormap
     from matplotlib.patches import Patch
 
@@ -354,7 +358,18 @@ def _draw_failed(ax, edges, status, z, paint: bool, nan_label: str) -> list:
             ax.pcolormesh(edges[0], edges[1], np.ma.masked_where(~cells, np.ones(z.shape)),
                           cmap=ListedColormap([grey]), shading="flat")
             handles.append(Patch(facecolor=grey, label=f"{text}: {int(cells.sum())}"))
-    blank = ~np.isfinite(z) & (status == Status.OK)
+    shown = (status == Status.OK) | (not paint)  # the members whose own value is drawn
+    # an infinite value is a blow-up, not a missing one: its own colour (found by review: the
+    # worst members of a sweep were white and counted as "no value (NaN)")
+    for cells, colour, text in ((np.isposinf(z) & shown, _INFINITE_COLOURS[0], "+inf"),
+                                (np.isneginf(z) & shown, _INFINITE_COLOURS[1], "-inf"),
+                                ((z <= 0) & shown if log else np.zeros(z.shape, bool), _NONPOSITIVE_COLOUR,
+                                 "<= 0 (no place on the log scale)")):
+        if cells.any():
+            ax.pcolormesh(edges[0], edges[1], np.ma.masked_where(~cells, np.ones(z.shape)),
+                          cmap=ListedColormap([colour]), shading="flat")
+            handles.append(Patch(facecolor=colour, edgecolor="0.3", label=f"{text}: {int(cells.sum())}"))
+    blank = np.isnan(z) & (status == Status.OK)
     if blank.any():
         ax.set_facecolor("white")
         handles.append(Patch(facecolor="white", edgecolor="0.3", label=f"{nan_label}: {int(blank.sum())}"))
