@@ -60,6 +60,10 @@
 #define LCG_BAD_ARGUMENT 8 /* an argument of a C driver or step function is out of range (n_steps < 0, stride < 1, a time or step size that is not finite): nothing was run or written */
 #endif
 
+#ifdef __cplusplus
+extern "C" {  /* C linkage when included from C++ */
+#endif
+
 /* Mass matrix M(q, t), row-major 1 x 1. */
 void lcg_bar_on_rollers_mass_matrix(double t, const double *x, const double *p, double *M);
 
@@ -98,5 +102,9 @@ int lcg_bar_on_rollers_step_monitored(int method, double t, double *x, const dou
 
 /* Many independent members, one after another: member m from x0s + m * 2 with ps + m * 6, its results at x_final + m * 2, q_max + m * 1, energy_error[m], status[m], steps_done[m] and (traj not NULL) traj + m * (n_steps / stride + 1) * 2; work: LCG_BAR_ON_ROLLERS_WORK_SIZE values. */
 void lcg_bar_on_rollers_sweep(int method, long n_members, const double *x0s, const double *ps, double t0, double h, long n_steps, long stride, int project, int track_energy, double *x_final, double *q_max, double *energy_error, int *status, long *steps_done, double *traj, double *work);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif /* LCG_BAR_ON_ROLLERS_H */

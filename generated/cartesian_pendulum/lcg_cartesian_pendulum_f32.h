@@ -61,6 +61,10 @@
 #define LCG_BAD_ARGUMENT 8 /* an argument of a C driver or step function is out of range (n_steps < 0, stride < 1, a time or step size that is not finite): nothing was run or written */
 #endif
 
+#ifdef __cplusplus
+extern "C" {  /* C linkage when included from C++ */
+#endif
+
 /* Mass matrix M(q, t), row-major 2 x 2. */
 void lcg_cartesian_pendulum_f32_mass_matrix(float t, const float *x, const float *p, float *M);
 
@@ -102,5 +106,9 @@ int lcg_cartesian_pendulum_f32_step_monitored(int method, float t, float *x, con
 
 /* Many independent members, one after another: member m from x0s + m * 4 with ps + m * 5, its results at x_final + m * 4, q_max + m * 2, energy_error[m], status[m], steps_done[m] and (traj not NULL) traj + m * (n_steps / stride + 1) * 4; work: LCG_CARTESIAN_PENDULUM_F32_WORK_SIZE values. */
 void lcg_cartesian_pendulum_f32_sweep(int method, long n_members, const float *x0s, const float *ps, float t0, float h, long n_steps, long stride, int project, int track_energy, float *x_final, float *q_max, float *energy_error, int *status, long *steps_done, float *traj, float *work);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif /* LCG_CARTESIAN_PENDULUM_F32_H */

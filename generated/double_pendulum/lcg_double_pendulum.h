@@ -64,6 +64,10 @@
 #define LCG_BAD_ARGUMENT 8 /* an argument of a C driver or step function is out of range (n_steps < 0, stride < 1, a time or step size that is not finite): nothing was run or written */
 #endif
 
+#ifdef __cplusplus
+extern "C" {  /* C linkage when included from C++ */
+#endif
+
 /* Mass matrix M(q, t), row-major 2 x 2. */
 void lcg_double_pendulum_mass_matrix(double t, const double *x, const double *p, double *M);
 
@@ -105,5 +109,9 @@ int lcg_double_pendulum_step_monitored(int method, double t, double *x, const do
 
 /* Many independent members, one after another: member m from x0s + m * 4 with ps + m * 5, its results at x_final + m * 4, q_max + m * 2, energy_error[m], status[m], steps_done[m] and (traj not NULL) traj + m * (n_steps / stride + 1) * 4; work: LCG_DOUBLE_PENDULUM_WORK_SIZE values. */
 void lcg_double_pendulum_sweep(int method, long n_members, const double *x0s, const double *ps, double t0, double h, long n_steps, long stride, int project, int track_energy, double *x_final, double *q_max, double *energy_error, int *status, long *steps_done, double *traj, double *work);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif /* LCG_DOUBLE_PENDULUM_H */

@@ -73,6 +73,10 @@
 #define LCG_BAD_ARGUMENT 8 /* an argument of a C driver or step function is out of range (n_steps < 0, stride < 1, a time or step size that is not finite): nothing was run or written */
 #endif
 
+#ifdef __cplusplus
+extern "C" {  /* C linkage when included from C++ */
+#endif
+
 /* Mass matrix M(q, t), row-major 5 x 5. */
 void lcg_slider_crank_mass_matrix(double t, const double *x, const double *p, double *M);
 
@@ -114,5 +118,9 @@ int lcg_slider_crank_step_monitored(int method, double t, double *x, const doubl
 
 /* Many independent members, one after another: member m from x0s + m * 10 with ps + m * 9, its results at x_final + m * 10, q_max + m * 5, energy_error[m], status[m], steps_done[m] and (traj not NULL) traj + m * (n_steps / stride + 1) * 10; work: LCG_SLIDER_CRANK_WORK_SIZE values. */
 void lcg_slider_crank_sweep(int method, long n_members, const double *x0s, const double *ps, double t0, double h, long n_steps, long stride, int project, int track_energy, double *x_final, double *q_max, double *energy_error, int *status, long *steps_done, double *traj, double *work);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif /* LCG_SLIDER_CRANK_H */

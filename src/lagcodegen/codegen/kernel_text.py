@@ -5,6 +5,7 @@ renderer (`render.py`) lays the functions out with the templates.
 """
 from __future__ import annotations
 
+import hashlib
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
@@ -68,7 +69,12 @@ def names_for(system: ReducedSystem, model_name: str) -> Names:
     for s in system.q + system.u + system.u_dependent + system.inputs + system.free_parameters + system.accelerations:
         symbols[s] = mangle(s.name, taken)
     symbols[system.t] = "t"
-    prefix = "lcg_" + mangle(model_name)
+    body = mangle(model_name)
+    if body != body.lower():  # found by review: the macros (LCG_PENDULUM_H) and, on some file systems, the
+        # file names fold case, so "Pendulum" and "pendulum" clashed in one firmware: a name with capitals
+        # gets 8 hex digits of its sha256
+        body = f"{body}_{hashlib.sha256(model_name.encode()).hexdigest()[:8]}"
+    prefix = "lcg_" + body
     state = {s: i for i, s in enumerate(system.q + system.u)}
     params = {s: i for i, s in enumerate(system.free_parameters)}
     accel = {s: i for i, s in enumerate(system.accelerations)}
