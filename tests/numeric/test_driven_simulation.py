@@ -160,6 +160,39 @@ def test_the_exported_step_takes_r(oscillator):
     np.testing.assert_array_equal([x2[0], x2[1]], run.x[-1])
 
 
+def test_the_stability_check_covers_a_callable_without_calling_it(oscillator):
+    """Found by review: with inputs from a callable the stability pre-check was skipped. The
+    oscillator's frequencies are -c/2m +- i sqrt(k/m - (c/2m)^2) (|lambda| = 2): h = 2 puts h|lambda|
+    = 4 beyond RK4's interval (2.83), so the check must warn; the callable is not called by it (a
+    controller with state would advance), so it sees the same calls with the check off."""
+    from lagcodegen.run.simulate import StabilityWarning
+
+    calls = []
+
+    def controller(t, x):
+        calls.append(t)
+        return [0.0]
+
+    with pytest.warns(StabilityWarning, match="outside rk4's stability region"):
+        simulate(oscillator, {"x": 1.0}, t_end=20.0, h=2.0, inputs=controller)
+    checked, calls[:] = list(calls), []
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", StabilityWarning)
+        simulate(oscillator, {"x": 1.0}, t_end=20.0, h=2.0, inputs=controller, check_stability=False)
+    assert checked == calls
+
+
+def test_symplectic_euler_refuses_a_first_order_hold(oscillator):
+    """Found by review: symplectic_euler reads the inputs once per step, and hold='foh' ran bit for
+    bit as 'zoh' without a word."""
+    table = ([0.0, 1.0], [0.0, 1.0])
+    with pytest.raises(ValueError, match="hold='foh' does not apply to symplectic_euler"):
+        simulate(oscillator, {"x": 1.0}, t_end=1.0, h=0.01, method="symplectic_euler", inputs=table, hold="foh")
+    with pytest.raises(ValueError, match="hold='foh' does not apply to symplectic_euler"):
+        sweep(oscillator, {"k": [K]}, x0={"x": 1.0}, t_end=1.0, h=0.01, method="symplectic_euler", inputs=table,
+              hold="foh")
+
+
 def test_a_feedback_callable_closes_the_loop(oscillator):
     """F = -3 x - 1.5 x' makes m x'' + (c + 1.5) x' + (k + 3) x = 0: against DOP853 on that system."""
     gain = lambda t, state: [-3.0 * state[0] - 1.5 * state[1]]  # noqa: E731
@@ -268,6 +301,28 @@ def test_solve_reference_takes_an_array_as_the_step_function_it_is(oscillator):
         exact.append(Phi @ exact[-1] + Gamma * r[k])
     t, ours = solve_reference(oscillator, {"x": 0.0}, np.arange(n + 1) * h, inputs=r)
     np.testing.assert_allclose(ours, np.array(exact), rtol=0, atol=1e-11)
+
+
+def test_solve_reference_keeps_the_rows_on_the_run_s_steps(oscillator):
+    """Found by review: solve_reference took the step of an input array from t_eval's spacing, so
+    t_eval = run.t[1:] (or strided) moved the rows in time and the reference was 7.5e-3 off, without
+    an error. Now such a t_eval needs h=; with it every t_eval gives the exact zero-order-hold map
+    x+ = e^(A h) x + A^-1 (e^(A h) - I) B r_k."""
+    from scipy.linalg import expm
+    h, n = 0.05, 40
+    r = np.where(np.arange(n) * h < 0.5, 0.0, 5.0)
+    A, B = np.array([[0.0, 1.0], [-K / M, -C / M]]), np.array([0.0, 1.0 / M])
+    Phi = expm(A * h)
+    Gamma = np.linalg.solve(A, (Phi - np.eye(2)) @ B)
+    exact = [np.zeros(2)]
+    for k in range(n):
+        exact.append(Phi @ exact[-1] + Gamma * r[k])
+    grid = np.arange(n + 1) * h
+    with pytest.raises(ValueError, match="an array of inputs per step needs the run's step: pass h="):
+        solve_reference(oscillator, {"x": 0.0}, grid[1:], inputs=r)
+    for t_eval in (grid[1:], grid[::4], grid[-1:]):
+        t, ours = solve_reference(oscillator, {"x": 0.0}, t_eval, inputs=r, h=h)
+        np.testing.assert_allclose(ours, np.array(exact)[np.searchsorted(grid, t_eval)], rtol=0, atol=1e-11)
 
 
 def test_the_jacobian_gives_df_dr(oscillator):

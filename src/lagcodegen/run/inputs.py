@@ -97,6 +97,16 @@ def resolve_inputs(layout, inputs, t0: float, h: float, n_steps: int, stride: in
                     margin=0.0 if exact_jumps else h / 2)
 
 
+def is_sampled(layout, inputs) -> bool:
+    """``inputs`` is an array of rows per step or stride (not a constant, table, mapping or callable)."""
+    if inputs is None or callable(inputs) or isinstance(inputs, Mapping) or _is_table(inputs):
+        return False
+    try:
+        return np.size(inputs) > len(layout.inputs)
+    except (TypeError, ValueError):
+        return False
+
+
 def _is_table(inputs) -> bool:
     if not isinstance(inputs, tuple) or len(inputs) != 2:
         return False

@@ -41,7 +41,7 @@ from .arguments import (
     stride_within,
 )
 from .inputs import hold_code
-from .simulate import c_pointer, compiled_method, real_dtype, work_size
+from .simulate import c_pointer, check_hold, compiled_method, real_dtype, work_size
 from .sweep_members import (  # noqa: F401
     cartesian_members,
     cartesian_product,
@@ -235,6 +235,7 @@ def sweep(system: CompiledSystem, grid: Mapping | None = None, *, members: Mappi
     check_member_starts(system, xs, ps, t0, columns, values)
     checked, member_parameters = system, ps
     ramp = hold_code(hold)
+    check_hold(method, ramp)
     tables = member_input_tables(system, columns, values, inputs, member_inputs, t0, h, n_steps, stride, hold)
     held = tables is not None and tables[0].shape[1] == 1  # every member's inputs constant in time
     system = _kernel_system(system, method, project, kernel, tables is None or held)
