@@ -58,6 +58,20 @@ def test_a_csv_table_on_a_first_order_hold(model_file, tmp_path, capsys):
     assert final_x(capsys.readouterr().out) == pytest.approx(step_response(2.0, 1.0), abs=1e-8)
 
 
+@pytest.mark.parametrize("first_time", ["-0.5", "+0", ".0", "-.25"])
+def test_a_csv_without_a_header_keeps_its_first_row(model_file, tmp_path, capsys, first_time):
+    """Found by review: a first row beginning with -, + or . was taken for a header and dropped.
+    Here the table (t_first, 0), (1, 2), (2, 2) starts the run between its first two knots, so
+    the input at t = 0 is the line between them, np.interp by hand (dropping the row would leave
+    t = 0 uncovered)."""
+    table = tmp_path / "force.csv"
+    table.write_text(f"{first_time},0\n1,2\n2,2\n")
+    data = saved(["simulate", model_file, "--t-end", "2", "--h", "1e-3", "--x0", "x=0", "--input", f"F={table}"],
+                 tmp_path)
+    assert data["inputs"][0, 0] == pytest.approx(np.interp(0.0, [float(first_time), 1.0, 2.0], [0.0, 2.0, 2.0]),
+                                                 abs=1e-15)
+
+
 def saved(argv, tmp_path):
     """Run ``lagcodegen argv --out <tmp>.npz``; assert exit 0 and return the .npz it wrote."""
     out = tmp_path / "saved.npz"

@@ -385,6 +385,10 @@ def test_an_undriven_model_refuses_inputs(tmp_path):
     # found by review: a string parsed as a number, a complex lost its imaginary part (or was named a shape)
     (lambda t, x: "1.0" if t > 0.5 else [0.0], Status.INPUT_FAILED, "returned str.*expected 1 real number"),
     (lambda t, x: [1.0 + 0.5j] if t > 0.5 else [0.0], Status.INPUT_FAILED, "returned complex128 values"),
+    # found by review: a dict or an object was reported as "returned ()", a bool ran as 1.0
+    (lambda t, x: {"F": 1.0} if t > 0.5 else [0.0], Status.INPUT_FAILED, "returned 'dict'.*expected 1 value"),
+    (lambda t, x: object() if t > 0.5 else [0.0], Status.INPUT_FAILED, "returned 'object'"),
+    (lambda t, x: [True] if t > 0.5 else [0.0], Status.INPUT_FAILED, "returned bool values.*expected 1 real"),
 ])
 def test_a_failing_callable_stops_with_a_status_and_keeps_the_run(oscillator, callable_, status, detail):
     with warnings.catch_warnings(record=True) as caught:

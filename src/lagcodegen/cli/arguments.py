@@ -168,14 +168,22 @@ def _input_table(name: str, path: Path) -> tuple:
         raise UsageError(f"--input {name}: {str(path)!r} is neither a number nor a file")
     try:
         rows = [line for line in path.read_text(encoding="utf-8-sig").splitlines() if line.strip()]
-        if rows and not rows[0].lstrip()[:1].lstrip("+-.").isdigit():
-            rows = rows[1:]  # a header
+        if rows and not _numeric_row(rows[0]):
+            rows = rows[1:]  # a header (found by review: a first row "-0.5,1" or ".5,1" was taken for one)
         table = np.array([[float(v) for v in row.split(",")] for row in rows], dtype=float)
     except (OSError, UnicodeDecodeError, ValueError) as error:
         raise UsageError(f"--input {name}: cannot read {path} as a CSV table of numbers ({error})") from None
     if table.ndim != 2 or table.shape[0] < 1 or table.shape[1] != 2:
         raise UsageError(f"--input {name}: {path} must have two columns (time, value), got shape {table.shape}")
     return table[:, 0], table[:, 1]
+
+
+def _numeric_row(row: str) -> bool:
+    try:
+        [float(v) for v in row.split(",")]
+    except ValueError:
+        return False
+    return True
 
 
 def parse_axis(item: str) -> tuple:

@@ -274,7 +274,8 @@ class CallableInputs:
             kind = np.asarray(result).dtype.kind
         except (TypeError, ValueError):  # ragged: refused below
             kind = "O"
-        if kind in "USc":  # a string would parse as a number, a complex would lose its imaginary part
+        if kind in "USbc":  # a string would parse as a number, a complex would lose its imaginary part,
+            # a bool is refused as a constant input is (found by review: [True] ran as 1.0)
             what = type(result).__name__ if np.ndim(result) == 0 else f"{np.asarray(result).dtype} values"
             return self._fail(Status.INPUT_FAILED, f"the input callable returned {what} at t = {float(t):g}; "
                                                    f"expected {len(self.names)} real number(s) for "
@@ -285,7 +286,8 @@ class CallableInputs:
         except (TypeError, ValueError):
             values = None
         if values is None or values.size != len(self.names):
-            shape = np.shape(result) if not isinstance(result, (str, bytes, type(None))) else type(result).__name__
+            # a dict or another object: its type, not the shape () numpy gives it (found by review)
+            shape = np.shape(result) if kind != "O" and result is not None else type(result).__name__
             return self._fail(Status.INPUT_FAILED, f"the input callable returned {shape!r} at t = {float(t):g}; "
                                                    f"expected {len(self.names)} value(s) for {', '.join(self.names)}")
         bad = [name for name, v in zip(self.names, values) if not math.isfinite(v)]
