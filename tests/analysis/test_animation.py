@@ -137,7 +137,8 @@ def test_gif_at_30_fps_keeps_real_time(pendulum_run, tmp_path):
     animate(run, out, fps=30, size=(2.0, 2.0), dpi=40)
     with Image.open(out) as gif:
         n_frames, duration = gif.n_frames, gif.info["duration"]
-    assert (n_frames, duration) == (7, 30)  # 30 ms apart: t = 0, 0.03, ..., 0.18
+    # 30 ms apart: t = 0, 0.03, ..., 0.18, then the run's end t = 0.2 (no frame fell on it)
+    assert (n_frames, duration) == (8, 30)
 
 
 @needs_cc
@@ -210,9 +211,10 @@ def test_five_models_draw_their_recorded_points(name):
     scene = compose_scene(run, links=model.links or None, trace=[run.point_names[-1]], projection=projection)
     _, update = draw_scene(scene, title=name)
     screen = project(np.asarray(run.points, dtype=float), projection)[0]  # the recorded points, projected
-    for k in (1, scene.n_frames - 1):
+    for k in (1, scene.n_frames - 2, scene.n_frames - 1):
         drawn = by_label(update(k))
-        sample = round(k * 0.04 / H)
+        # frames 0.04 s apart (25 fps), then the run's last sample, t = 0.1, which none fell on
+        sample = round(k * 0.04 / H) if k < scene.n_frames - 1 else len(run.t) - 1
         np.testing.assert_allclose(np.column_stack(drawn["points"].get_data()), screen[sample], atol=1e-12)
         at = dict(zip(run.point_names, screen[sample])) | {"origin": np.zeros(2)}
         links = model.links or tuple(zip(("origin",) + run.point_names[:-1], run.point_names))
@@ -267,6 +269,50 @@ def test_bad_output_paths_are_named(tmp_path, name, culprit):
     out = str(tmp_path / name) if name else name
     with pytest.raises(AnimationError, match=culprit):
         animate(synthetic(), out)
+
+
+def test_an_unwritable_output_is_named_before_drawing(monkeypatch, capsys):
+    """Found by review: animate to a place that cannot be written (here /proc, where no file can be
+    created, even by root) drew every frame first and then failed without naming --out."""
+    import lagcodegen.analysis.animation as animation_module
+
+    def never(*args, **kwargs):
+        raise AssertionError("drew frames for an output it cannot write")
+
+    monkeypatch.setattr(animation_module, "write_animation", never)
+    with pytest.raises(AnimationError, match=r"out '/proc/lagcodegen_scene.gif': cannot write there"):
+        animate(synthetic(), "/proc/lagcodegen_scene.gif")
+    code = main(["animate", "double_pendulum", "--x0", "q1=1,q2=0", "--t-end", "0.1", "--out",
+                 "/proc/lagcodegen_scene.gif"])
+    err = capsys.readouterr().err
+    assert code == 2 and "--out '/proc/lagcodegen_scene.gif': cannot write there" in err, err
+
+
+def test_the_last_frame_is_the_run_s_end():
+    """Found by review: frames fell every 0.04 s (25 fps) up to t_end and a run ending between two
+    of them (t_end = 1.039) was never shown at its end. By hand: samples every 1 ms, frames at
+    samples 0, 40, ..., 1000 (t = 1.0), then the last sample, 1039."""
+    t = np.arange(1040) * 1e-3
+    samples = scenes.frame_samples(t, 40.0, 1.0)
+    assert list(samples[:-1]) == list(range(0, 1001, 40)) and samples[-1] == 1039
+    exact = scenes.frame_samples(t[:1001], 40.0, 1.0)  # a run that ends on a frame gets no extra one
+    assert list(exact) == list(range(0, 1001, 40))
+
+
+def test_a_gif_too_large_for_memory_is_refused_before_drawing(monkeypatch, tmp_path):
+    """Found by review: a GIF's writer keeps every frame (0.83-0.92 MB each at the default 400 x
+    400 pixels), so the 18,000 frames allowed would take about 15 GB. The estimate, 6 bytes per
+    pixel, is checked against the run limit before any frame is drawn: 6 frames of 800 x 800 px
+    take 6 x 640,000 x 6 B = 22 MiB, refused under a 16 MiB limit."""
+    import lagcodegen.analysis.animation as animation_module
+    import lagcodegen.run.arguments as arguments
+    from lagcodegen.run.arguments import OutputTooLargeError
+
+    monkeypatch.setattr(arguments, "output_limit", lambda: 16 * 2**20)
+    monkeypatch.setattr(animation_module, "draw_scene", lambda *a, **k: pytest.fail("drew frames"))
+    run = synthetic()  # 0.2 s at speed 1, 25 fps (40 ms): frames at 0, ..., 0.2, 6 of them
+    with pytest.raises(OutputTooLargeError, match=r"a GIF of 6 frames of 800 x 800 pixels"):
+        animate(run, tmp_path / "scene.gif", size=(10.0, 10.0), dpi=80)
 
 
 def test_output_path_that_is_a_directory_is_named(tmp_path):

@@ -126,13 +126,15 @@ def project(positions: np.ndarray, projection=None) -> tuple[np.ndarray, tuple]:
 
 
 #: frames an animation may have: 10 minutes at 30 fps, far beyond what anyone watches, and a
-#: bound on the memory and time a slip of ``speed`` (1e-5 for 1e-1) would take
+#: bound on the time a slip of ``speed`` (1e-5 for 1e-1) would take; a GIF's memory is checked
+#: apart (`animation.GIF_BYTES_PER_PIXEL`)
 MAX_FRAMES = 18_000
 
 
 def frame_samples(t: np.ndarray, interval: float, speed: float) -> np.ndarray:
     """Indices into ``t`` (n_samples,) of the frames: the sample nearest each frame time
-    ``t[0] + k * speed * interval / 1000`` up to ``t[-1]``; shape (n_frames,). More than
+    ``t[0] + k * speed * interval / 1000`` up to ``t[-1]``, then the last sample when no frame
+    fell on it; shape (n_frames,). More than
     `MAX_FRAMES` frames raise `AnimationError`, naming the speed."""
     t = np.asarray(t, dtype=np.float64)
     step = speed * interval / 1000.0
@@ -147,7 +149,10 @@ def frame_samples(t: np.ndarray, interval: float, speed: float) -> np.ndarray:
     right = np.clip(np.searchsorted(t, targets), 1, max(len(t) - 1, 1))
     left = right - 1
     nearer_right = np.abs(t[np.minimum(right, len(t) - 1)] - targets) < np.abs(t[left] - targets)
-    return np.where(nearer_right, np.minimum(right, len(t) - 1), left)
+    samples = np.where(nearer_right, np.minimum(right, len(t) - 1), left)
+    if samples[-1] != len(t) - 1:  # the run's last state ends it, a shorter last interval (found by
+        samples = np.append(samples, len(t) - 1)  # review: t_end = 1.039 at 25 fps ended at t = 1)
+    return samples
 
 
 def frame_interval(fps: float, gif: bool) -> float:
