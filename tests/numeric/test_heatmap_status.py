@@ -90,3 +90,22 @@ def test_infinite_values_are_not_drawn_as_missing(completed_grid):
     legend = _legend(logged)
     assert "<= 0 (no place on the log scale): 1" in legend and "+inf: 1" in legend
     assert not any(text.startswith("no value") for text in legend)
+
+
+def test_a_wide_axis_is_logarithmic_even_when_not_geometric(compiled_example):
+    """Found by review: k = 1, 10, 1e3, 1e4 (not geometric) got a linear axis from -3.5 to 14500,
+    where the k = 1 row took under a pixel. Positive values spanning two decades or more now get a
+    log axis, whose cells are the same height for each decade (edges at the geometric midpoints:
+    sqrt(1 * 10) = 3.16 between the first two rows, by hand); x_log/y_log override."""
+    system = compiled_example("double_pendulum", outputs=("rhs", "energy"), methods=("rk4",))
+    result = sweep(system, {"g": (1.0, 10.0, 1e3, 1e4), "l2": (0.5, 1.0)}, x0=(0.5, 0.0, 0.0, 0.0), t_end=0.01,
+                   h=0.01)
+    figure = plot_heatmap(result, "q_max:q1")
+    axes = figure.axes[0]
+    assert axes.get_yscale() == "log" and axes.get_xscale() == "linear"
+    low, high = axes.get_ylim()
+    assert low > 0 and low == pytest.approx(1.0 / np.sqrt(10.0)) and high == pytest.approx(1e4 * np.sqrt(10.0))
+    assert plot_heatmap(result, "q_max:q1", y_log=False).axes[0].get_yscale() == "linear"
+    with pytest.raises(ValueError, match="a log axis for 'l2' needs positive values"):
+        plot_heatmap(sweep(system, {"g": (1.0, 2.0), "l2": (0.0, 1.0)}, x0=(0.5, 0.0, 0.0, 0.0), t_end=0.01,
+                           h=0.01), "q_max:q1", x_log=True)

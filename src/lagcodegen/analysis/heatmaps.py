@@ -185,6 +185,23 @@ def is_geometric(axis: np.ndarray) -> bool:
     return bool(np.allclose(steps, steps[0], rtol=1e-6))
 
 
+def wants_log(axis: np.ndarray) -> bool:
+    """A log axis for geometric values, and for any positive ones spanning two decades or more
+    (found by review: k = 1, 10, 1e3, 1e4 on a linear axis left the k = 1 row under a pixel)."""
+    axis = np.sort(np.asarray(axis, dtype=float))
+    if axis.size < 2 or axis[0] <= 0:
+        return False
+    return is_geometric(axis) or bool(axis[-1] / axis[0] >= 100)
+
+
+def _axis_log(values: np.ndarray, forced, name: str) -> bool:
+    if forced is None:
+        return wants_log(values)
+    if forced and np.min(values) <= 0:
+        raise ValueError(f"a log axis for {name!r} needs positive values, got {np.min(values):g}")
+    return bool(forced)
+
+
 def _edges(axis: np.ndarray, log: bool) -> np.ndarray:
     """Cell edges around sorted axis values (midpoints; geometric ones on a log axis)."""
     if axis.size == 1:
@@ -199,7 +216,7 @@ def _edges(axis: np.ndarray, log: bool) -> np.ndarray:
 def plot_heatmap(result: SweepResult, field: str | np.ndarray, *, title: str | None = None,
                  label: str | None = None, log: bool = False, x: str | None = None, y: str | None = None,
                  cmap: str = "viridis", mask_failed: bool | None = None,
-                 nan_label: str | None = None) -> Figure:
+                 nan_label: str | None = None, x_log: bool | None = None, y_log: bool | None = None) -> Figure:
     """Heatmap of one field over two swept columns.
 
     Parameters
@@ -221,6 +238,9 @@ def plot_heatmap(result: SweepResult, field: str | np.ndarray, *, title: str | N
     nan_label : str, optional
         Legend text for completed members whose value is NaN (white cells); default
         "completed (no failure)" for ``blowup_time``, else "no value (NaN)".
+    x_log, y_log : bool, optional
+        Logarithmic axes; default: for positive values spaced geometrically or spanning two
+        decades or more.
 
     Returns
     -------
@@ -238,7 +258,7 @@ def plot_heatmap(result: SweepResult, field: str | np.ndarray, *, title: str | N
     if mask_failed is None:
         mask_failed = name not in FAILURE_FIELDS
     fig, ax = _new_figure()
-    x_log, y_log = is_geometric(x_axis), is_geometric(y_axis)
+    x_log, y_log = _axis_log(x_axis, x_log, x), _axis_log(y_axis, y_log, y)
     edges = (_edges(x_axis, x_log), _edges(y_axis, y_log))
     if name == "status":
         _draw_status(fig, ax, edges, status, label or default_label)
