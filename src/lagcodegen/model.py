@@ -24,7 +24,7 @@ import sympy.physics.mechanics as me
 from sympy.core.function import AppliedUndef
 
 from .symbolic.grouping import components
-from .tree import TreeError, checked_tree
+from .tree import TreeError, checked_tree, three_entries
 
 TIME = me.dynamicsymbols._t
 
@@ -322,9 +322,9 @@ class Model:
             raise ModelError(f"model {self.name!r}: a tree brings its bodies, frames and points; drop "
                              f"{', '.join(given)} (springs and drives go in potential_energy, "
                              "generalized_forces and dissipation)")
-        if self.gravity is not None and not (isinstance(self.gravity, (list, tuple)) and len(self.gravity) == 3):
-            raise ModelError(f"model {self.name!r}: a tree's gravity is 3 components in the ground frame, "
-                             f"got {self.gravity!r}")
+        if self.gravity is not None and three_entries(self.gravity) is None:
+            raise ModelError(f"model {self.name!r}: a tree's gravity is 3 components in the ground frame (a list, "
+                             f"tuple, 1-D array or sympy Matrix), got {self.gravity!r}")
         return tree
 
     def tree_points(self) -> tuple:
@@ -437,7 +437,8 @@ class Model:
                 for i, c in enumerate(pos):
                     exprs.append((f"point {name!r} component {i}", _as_expr(c, f"point {name!r}")))
         if self.gravity is not None and self.tree:
-            exprs += [(f"gravity component {i}", _as_expr(g, "gravity")) for i, g in enumerate(self.gravity)]
+            exprs += [(f"gravity component {i}", _as_expr(g, "gravity"))
+                      for i, g in enumerate(three_entries(self.gravity))]
         elif self.gravity is not None:
             if not isinstance(self.gravity, me.Vector):
                 raise ModelError(f"gravity must be a sympy.physics.vector Vector (e.g. -g*N.y), got {self.gravity!r}")

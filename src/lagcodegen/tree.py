@@ -122,9 +122,23 @@ class Link:
         return expr
 
     def _vector(self, what: str, value) -> tuple:
-        if not isinstance(value, (list, tuple)) or len(value) != 3:
-            raise TreeError(f"link {self.name!r}: {what} must be 3 entries (x, y, z), got {value!r}")
-        return tuple(self._expr(what, v) for v in value)
+        entries = three_entries(value)
+        if entries is None:
+            raise TreeError(f"link {self.name!r}: {what} must be 3 entries (x, y, z) in a list, tuple, 1-D "
+                            f"array or sympy Matrix, got {value!r}")
+        return tuple(self._expr(what, v) for v in entries)
+
+
+def three_entries(value) -> tuple | None:
+    """The 3 entries of a list, tuple, 1-D numpy array or 3-entry sympy Matrix, else None (found by
+    review: numpy arrays were refused as "must be 3 entries", which they had)."""
+    if isinstance(value, np.ndarray):
+        return tuple(value.tolist()) if value.shape == (3,) else None
+    if isinstance(value, sp.MatrixBase):
+        return tuple(value) if sorted(value.shape) == [1, 3] else None
+    if isinstance(value, (list, tuple)) and len(value) == 3:
+        return tuple(value)
+    return None
 
 
 def checked_tree(links, coordinates) -> tuple:

@@ -23,6 +23,7 @@ from lagcodegen.pipeline import compile_model
 from lagcodegen.run.simulate import jacobian, make_rhs, parameter_vector, simulate
 from lagcodegen.symbolic.derive import derive_equations
 from lagcodegen.symbolic.trees import choose_formulation, derive_from_tree
+from lagcodegen.tree import TreeError
 
 
 def _states(n_q: int, count: int = 5, seed: int = 0) -> np.ndarray:
@@ -369,3 +370,47 @@ def test_the_difference_jacobian_keeps_its_accuracy_at_large_angles(tmp_path):
             x[:4] += offset * rng.choice([-1, 1], 4)
             J = jacobian(closed, x, None)
             assert np.abs(jacobian(recursive, x, None) - J).max() < limit * np.abs(J).max(), offset
+
+
+def test_vectors_may_be_numpy_arrays_or_sympy_matrices(tmp_path):
+    """Found by review: a 3-entry numpy array for an axis or for gravity was refused as "must be 3
+    entries". A point mass 1 at distance 1 on a revolute joint: q'' = -g sin q by hand."""
+    q = me.dynamicsymbols("q")
+    for axis, center, gravity in ((np.array([0, 0, 1]), np.array([0.0, -1.0, 0.0]), np.array([0, -9.81, 0])),
+                                  (sp.Matrix([0, 0, 1]), sp.Matrix([[0, -1, 0]]), sp.Matrix([0, -9.81, 0]))):
+        model = Model("numpy_pendulum", [q], [], gravity=gravity,
+                      tree=[Link("rod", None, "revolute", axis, q, mass=1, center=center)])
+        rate = make_rhs(_compiled(model, tmp_path))(0.0, np.array([0.5, 0.0]))
+        np.testing.assert_allclose(rate, [0.0, -9.81 * np.sin(0.5)], rtol=1e-14)
+    with pytest.raises(TreeError, match="must be 3 entries"):
+        Link("rod", None, "revolute", np.array([0, 1]), q)
+    with pytest.raises(ModelError, match="gravity is 3 components"):
+        Model("g", [q], [], gravity=np.zeros((3, 3)), tree=[Link("rod", None, "revolute", (0, 0, 1), q, mass=1,
+                                                                   center=(0, -1, 0))])
+
+
+def test_a_joint_whose_carried_mass_lies_on_its_axis_is_named_rightly():
+    """Found by review: a massless turntable (axis z) carrying a slider along z with mass 1 was
+    said to be "massless and carries no link with mass"; it does carry one, whose mass lies on the
+    turntable's axis (no inertia about it, so the turntable's pivot is zero)."""
+    q1, q2 = me.dynamicsymbols("q1 q2")
+    tree = [Link("turntable", None, "revolute", (0, 0, 1), q1),
+            Link("slider", "turntable", "prismatic", (0, 0, 1), q2, mass=1)]
+    with pytest.raises(ModelError, match="articulated inertia about its joint's axis is zero .*their mass lies on "
+                                         "that axis"):
+        derive_equations(Model("turntable", [q1, q2], [], tree=tree, formulation="recursive"))
+
+
+def test_derive_on_the_command_line_says_a_recursive_tree_forms_no_m_and_f(tmp_path, capsys):
+    """Found by review: `lagcodegen derive` printed "M = None" and "F = None" for a recursive tree."""
+    from lagcodegen.cli.commands import main
+
+    source = tmp_path / "tree.py"
+    source.write_text("import sympy.physics.mechanics as me\nfrom lagcodegen import Link, Model\n"
+                      "q = me.dynamicsymbols('q')\n"
+                      "model = Model('rod', [q], [], gravity=(0, -9.81, 0), formulation='recursive',\n"
+                      "              tree=[Link('rod', None, 'revolute', (0, 0, 1), q, mass=1, center=(0, -1, 0))])\n")
+    code = main(["derive", str(source)])
+    out, err = capsys.readouterr()
+    assert code == 2 and "M = None" not in out
+    assert "needs the closed-form M and F" in err and "formulation='closed'" in err

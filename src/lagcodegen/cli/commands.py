@@ -74,6 +74,13 @@ def cmd_derive(args) -> int:
     speeds = f", {eom.n_u} speeds" if eom.n_u != eom.n_q else ""
     print(f"{eom.name}: {eom.route}, n = {eom.n_q}{speeds}, derived in {elapsed:.3f} s")
     print(f"coordinates q = {list(eom.q)}; speeds u = {list(eom.u)}; parameters {list(eom.parameters)}")
+    if eom.tree is not None:  # found by review: it printed "M = None" and "F = None"
+        from ..statics.equilibria import require_closed_form
+
+        try:
+            require_closed_form(eom, "derive")
+        except ValueError as error:
+            raise UsageError(str(error)) from None
     if args.latex:
         from ..symbolic.display import latex_equations
 

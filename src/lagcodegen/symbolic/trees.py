@@ -25,7 +25,7 @@ import sympy as sp
 import sympy.physics.mechanics as me
 
 from ..model import Model, ModelError
-from ..tree import joint_map
+from ..tree import joint_map, three_entries
 from .equations import EquationsOfMotion, assemble, lagrange_symbols
 
 # The cost model of `choose_formulation`: operations after CSE per evaluation of the dynamics, fitted
@@ -176,7 +176,7 @@ def bodies_model(model: Model) -> Model:
             bodies.append(me.Particle(link.name, center, link.mass))
         for name, xyz in link.points.items():
             points[name] = origin.locatenew(name, _vector(xyz, frame))
-    gravity = _vector(model.gravity, N) if model.gravity is not None else None
+    gravity = _vector(three_entries(model.gravity), N) if model.gravity is not None else None
     return Model(model.name, model.coordinates, model.parameters, potential_energy=model.potential_energy,
                  generalized_forces=model.generalized_forces, dissipation=model.dissipation, bodies=bodies,
                  gravity=gravity, frame=N, origin=O, points=points, parameter_values=model.parameter_values,
@@ -334,7 +334,8 @@ def derive_recursive(model: Model, choice: FormulationChoice | None = None) -> E
     P = joint_map(links, coords)
     theta = [to_plain(link.variable, f"joint variable of link {link.name!r}") for link in links]
     theta_d = [sp.Add(*[P[i, j] * u[j] for j in range(n) if P[i, j] != 0]) for i in range(n)]
-    gravity = [to_plain(g, "gravity") for g in model.gravity] if model.gravity is not None else [0, 0, 0]
+    gravity = [to_plain(g, "gravity") for g in three_entries(model.gravity)] if model.gravity is not None \
+        else [0, 0, 0]
     taken = {s.name for s in (*q, *u, *model.parameters)} | {str(r) for r in model.inputs}
     rec = _Recorder(taken)
     index = {link.name: i for i, link in enumerate(links)}
@@ -383,8 +384,9 @@ def derive_recursive(model: Model, choice: FormulationChoice | None = None) -> E
         D[i] = rec.bind(_dot(S, U[i]), f"D_{i}")
         if D[i] == 0:  # 1 / D would print as zoo: refused as the closed form refuses a speed without inertia
             raise ModelError(f"model {model.name!r}: link {links[i].name!r} (joint variable {theta[i]}) has no "
-                             "inertia: it is massless and carries no link with mass, so its joint's acceleration "
-                             "is not determined; give it a mass or an inertia about its axis")
+                             "inertia: the articulated inertia about its joint's axis is zero (it and the links it "
+                             "carries have no mass, or their mass lies on that axis and no inertia about it), so its "
+                             "joint's acceleration is not determined; give it a mass or an inertia about its axis")
         u_[i] = rec.bind(tau[i] - _dot(S, pi), f"u_{i}")
         Dinv = rec.bind(1 / D[i], f"Dinv_{i}")
         D_inverse[i] = Dinv
