@@ -73,7 +73,7 @@ void lcg_bar_on_rollers_forcing(double t, const double *x, const double *p, doub
 /* Generalized accelerations ud solving M ud = F; returns a status code. */
 int lcg_bar_on_rollers_accel(double t, const double *x, const double *p, double *ud);
 
-/* First-order right-hand side xdot = f(t, x), x = (q, u), 2 values; returns a status code. xdot must not alias x. */
+/* First-order right-hand side xdot = f(t, x), x = (q, u), 2 values, ud solving M ud = F; returns a status code. xdot must not alias x. */
 int lcg_bar_on_rollers_rhs(double t, const double *x, const double *p, double *xdot);
 
 /* Total mechanical energy T + V. */

@@ -76,7 +76,7 @@ void lcg_centrifugal_governor_f32_forcing(float t, const float *x, const float *
 /* Generalized accelerations ud solving M ud = F; returns a status code. */
 int lcg_centrifugal_governor_f32_accel(float t, const float *x, const float *p, float *ud);
 
-/* First-order right-hand side xdot = f(t, x), x = (q, u), 2 values; returns a status code. xdot must not alias x. */
+/* First-order right-hand side xdot = f(t, x), x = (q, u), 2 values, ud solving M ud = F; returns a status code. xdot must not alias x. */
 int lcg_centrifugal_governor_f32_rhs(float t, const float *x, const float *p, float *xdot);
 
 /* Total mechanical energy T + V. */

@@ -195,7 +195,7 @@ int lcg_disk_spring_rod_accel(double t, const double *x, const double *p, double
 #endif
 #if LCG_BUILD_PART != 1
 
-/* First-order right-hand side xdot = f(t, x), x = (q, u), 4 values; returns a status code. xdot must not alias x. */
+/* First-order right-hand side xdot = f(t, x), x = (q, u), 4 values, ud solving M ud = F; returns a status code. xdot must not alias x. */
 int lcg_disk_spring_rod_rhs(double t, const double *x, const double *p, double *xdot)
 {
     return lcg_disk_spring_rod_finite_result(lcg_disk_spring_rod_dynamics(t, x, p, xdot, xdot + 2, 0), xdot, 4);

@@ -75,7 +75,7 @@ void lcg_disk_spring_rod_forcing(double t, const double *x, const double *p, dou
 /* Generalized accelerations ud solving M ud = F; returns a status code. */
 int lcg_disk_spring_rod_accel(double t, const double *x, const double *p, double *ud);
 
-/* First-order right-hand side xdot = f(t, x), x = (q, u), 4 values; returns a status code. xdot must not alias x. */
+/* First-order right-hand side xdot = f(t, x), x = (q, u), 4 values, ud solving M ud = F; returns a status code. xdot must not alias x. */
 int lcg_disk_spring_rod_rhs(double t, const double *x, const double *p, double *xdot);
 
 /* Total mechanical energy T + V. */

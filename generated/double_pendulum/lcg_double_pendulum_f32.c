@@ -225,7 +225,7 @@ int lcg_double_pendulum_f32_accel(float t, const float *x, const float *p, float
 #endif
 #if LCG_BUILD_PART != 1
 
-/* First-order right-hand side xdot = f(t, x), x = (q, u), 4 values; returns a status code. xdot must not alias x. */
+/* First-order right-hand side xdot = f(t, x), x = (q, u), 4 values, ud solving M ud = F; returns a status code. xdot must not alias x. */
 int lcg_double_pendulum_f32_rhs(float t, const float *x, const float *p, float *xdot)
 {
     return lcg_double_pendulum_f32_finite_result(lcg_double_pendulum_f32_dynamics(t, x, p, xdot, xdot + 2, 0), xdot, 4);

@@ -77,7 +77,7 @@ void lcg_double_pendulum_f32_forcing(float t, const float *x, const float *p, fl
 /* Generalized accelerations ud solving M ud = F; returns a status code. */
 int lcg_double_pendulum_f32_accel(float t, const float *x, const float *p, float *ud);
 
-/* First-order right-hand side xdot = f(t, x), x = (q, u), 4 values; returns a status code. xdot must not alias x. */
+/* First-order right-hand side xdot = f(t, x), x = (q, u), 4 values, ud solving M ud = F; returns a status code. xdot must not alias x. */
 int lcg_double_pendulum_f32_rhs(float t, const float *x, const float *p, float *xdot);
 
 /* Total mechanical energy T + V. */

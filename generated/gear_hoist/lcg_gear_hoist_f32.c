@@ -183,7 +183,7 @@ int lcg_gear_hoist_f32_accel(float t, const float *x, const float *p, float *ud)
 #endif
 #if LCG_BUILD_PART != 1
 
-/* First-order right-hand side xdot = f(t, x), x = (q, u), 2 values; returns a status code. xdot must not alias x. */
+/* First-order right-hand side xdot = f(t, x), x = (q, u), 2 values, ud solving M ud = F; returns a status code. xdot must not alias x. */
 int lcg_gear_hoist_f32_rhs(float t, const float *x, const float *p, float *xdot)
 {
     return lcg_gear_hoist_f32_finite_result(lcg_gear_hoist_f32_dynamics(t, x, p, xdot, xdot + 1, 0), xdot, 2);

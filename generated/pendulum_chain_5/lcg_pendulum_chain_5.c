@@ -403,7 +403,7 @@ int lcg_pendulum_chain_5_accel(double t, const double *x, const double *p, doubl
 #endif
 #if LCG_BUILD_PART != 1
 
-/* First-order right-hand side xdot = f(t, x), x = (q, u), 10 values; returns a status code. xdot must not alias x. */
+/* First-order right-hand side xdot = f(t, x), x = (q, u), 10 values, ud solving M ud = F; returns a status code. xdot must not alias x. */
 int lcg_pendulum_chain_5_rhs(double t, const double *x, const double *p, double *xdot)
 {
     return lcg_pendulum_chain_5_finite_result(lcg_pendulum_chain_5_dynamics(t, x, p, xdot, xdot + 5, 0), xdot, 10);

@@ -92,7 +92,7 @@ void lcg_pendulum_chain_5_forcing(double t, const double *x, const double *p, do
 /* Generalized accelerations ud solving M ud = F; returns a status code. */
 int lcg_pendulum_chain_5_accel(double t, const double *x, const double *p, double *ud);
 
-/* First-order right-hand side xdot = f(t, x), x = (q, u), 10 values; returns a status code. xdot must not alias x. */
+/* First-order right-hand side xdot = f(t, x), x = (q, u), 10 values, ud solving M ud = F; returns a status code. xdot must not alias x. */
 int lcg_pendulum_chain_5_rhs(double t, const double *x, const double *p, double *xdot);
 
 /* Total mechanical energy T + V. */

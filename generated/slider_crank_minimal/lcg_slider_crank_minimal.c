@@ -238,7 +238,7 @@ int lcg_slider_crank_minimal_accel(double t, const double *x, const double *p, d
 #endif
 #if LCG_BUILD_PART != 1
 
-/* First-order right-hand side xdot = f(t, x), x = (q, u), 2 values; returns a status code. xdot must not alias x. */
+/* First-order right-hand side xdot = f(t, x), x = (q, u), 2 values, ud solving M ud = F; returns a status code. xdot must not alias x. */
 int lcg_slider_crank_minimal_rhs(double t, const double *x, const double *p, double *xdot)
 {
     return lcg_slider_crank_minimal_finite_result(lcg_slider_crank_minimal_dynamics(t, x, p, xdot, xdot + 1, 0), xdot, 2);

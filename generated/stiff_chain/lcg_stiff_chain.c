@@ -216,7 +216,7 @@ int lcg_stiff_chain_accel(double t, const double *x, const double *p, double *ud
 #endif
 #if LCG_BUILD_PART != 1
 
-/* First-order right-hand side xdot = f(t, x), x = (q, u), 6 values; returns a status code. xdot must not alias x. */
+/* First-order right-hand side xdot = f(t, x), x = (q, u), 6 values, ud solving M ud = F; returns a status code. xdot must not alias x. */
 int lcg_stiff_chain_rhs(double t, const double *x, const double *p, double *xdot)
 {
     return lcg_stiff_chain_finite_result(lcg_stiff_chain_dynamics(t, x, p, xdot, xdot + 3, 0), xdot, 6);

@@ -76,7 +76,7 @@ void lcg_stiff_chain_forcing(double t, const double *x, const double *p, double 
 /* Generalized accelerations ud solving M ud = F; returns a status code. */
 int lcg_stiff_chain_accel(double t, const double *x, const double *p, double *ud);
 
-/* First-order right-hand side xdot = f(t, x), x = (q, u), 6 values; returns a status code. xdot must not alias x. */
+/* First-order right-hand side xdot = f(t, x), x = (q, u), 6 values, ud solving M ud = F; returns a status code. xdot must not alias x. */
 int lcg_stiff_chain_rhs(double t, const double *x, const double *p, double *xdot);
 
 /* Total mechanical energy T + V. */

@@ -216,7 +216,7 @@ int lcg_stiff_chain_f32_accel(float t, const float *x, const float *p, float *ud
 #endif
 #if LCG_BUILD_PART != 1
 
-/* First-order right-hand side xdot = f(t, x), x = (q, u), 6 values; returns a status code. xdot must not alias x. */
+/* First-order right-hand side xdot = f(t, x), x = (q, u), 6 values, ud solving M ud = F; returns a status code. xdot must not alias x. */
 int lcg_stiff_chain_f32_rhs(float t, const float *x, const float *p, float *xdot)
 {
     return lcg_stiff_chain_f32_finite_result(lcg_stiff_chain_f32_dynamics(t, x, p, xdot, xdot + 3, 0), xdot, 6);

@@ -25,7 +25,7 @@ from lagcodegen.codegen.render import render_sources
 from lagcodegen.model import TIME, Model
 from lagcodegen.native.build import build_module
 
-STRICT = ["-std=c99", "-Wall", "-Wextra", "-Wpedantic", "-Werror"]
+STRICT = ["-std=c99", "-Wall", "-Wextra", "-Wpedantic", "-Wshadow", "-Werror"]
 PLAIN = ("plain_pendulum", ("a", "b"), ("m1", "m2", "l1", "l2", "g"), ("bob1", "bob2"))
 METHODS = ("rk4", "implicit_midpoint")  # exercise both stepper templates with the prefix
 #: (id, model name, 2 coordinate names, 5 parameter names (m1 m2 l1 l2 g), 2 point names)

@@ -49,7 +49,7 @@ def _solver_locals(n: int) -> set:
     (pivot_j): user names must avoid them."""
     names = set()
     for j in range(n):
-        names |= {f"F_{j}", f"D_{j}", f"Dinv_{j}", f"y_{j}", f"w_{j}", f"pivot_{j}"}
+        names |= {f"F_{j}", f"D_{j}", f"Dinv_{j}", f"y_{j}", f"w_{j}", f"yc_{j}", f"wc_{j}", f"pivot_{j}"}
         for k in range(n):
             names |= {f"M_{j}_{k}", f"L_{j}_{k}", f"LD_{j}_{k}"}
     return names

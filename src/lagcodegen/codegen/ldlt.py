@@ -50,14 +50,17 @@ def ldlt_factor_lines(n: int, nonzero: set, real: str, failure: str = "LCG_SINGU
     return lines, LD
 
 
-def ldlt_substitution_lines(n: int, LD: set, real: str, rhs, out) -> list:
-    """Forward, diagonal and backward substitution with the factors; rhs(i), out(i) name C lvalues."""
-    lines = ["/* Substitute: L y = b, D z = y, L^T w = z */"]
+def ldlt_substitution_lines(n: int, LD: set, real: str, rhs, out, names: tuple = ("y", "w")) -> list:
+    """Forward, diagonal and backward substitution with the factors; rhs(i), out(i) name C lvalues;
+    ``names`` the stems of the locals (another pair for a solve inside the scope of a first one:
+    found by review, the constrained dynamics' second solve shadowed the first's y_i, -Wshadow)."""
+    y, w = names
+    lines = [f"/* Substitute: L {y} = b, D z = {y}, L^T {w} = z */"]
     for i in range(n):
-        lower = _minus_terms((f"L_{i}_{k}", f"y_{k}") for k in range(i) if (i, k) in LD)
-        lines.append(f"const {real} y_{i} = {rhs(i)}{lower};")
+        lower = _minus_terms((f"L_{i}_{k}", f"{y}_{k}") for k in range(i) if (i, k) in LD)
+        lines.append(f"const {real} {y}_{i} = {rhs(i)}{lower};")
     for i in reversed(range(n)):
-        back = _minus_terms((f"L_{k}_{i}", f"w_{k}") for k in range(i + 1, n) if (k, i) in LD)
-        lines.append(f"const {real} w_{i} = y_{i} * Dinv_{i}{back};")
-        lines.append(f"{out(i)} = w_{i};")
+        back = _minus_terms((f"L_{k}_{i}", f"{w}_{k}") for k in range(i + 1, n) if (k, i) in LD)
+        lines.append(f"const {real} {w}_{i} = {y}_{i} * Dinv_{i}{back};")
+        lines.append(f"{out(i)} = {w}_{i};")
     return lines

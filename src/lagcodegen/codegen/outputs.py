@@ -273,12 +273,23 @@ def _forcing_c(w: KernelWriter, kernel) -> dict:
                   f"Forcing {what}, {w.n_m} values.", body)
 
 
+def _accelerations_solve(w: KernelWriter) -> str:
+    """Which equations ud solves, for the docs (found by review: a constrained model's said M ud = F)."""
+    if w.system.u_dependent:
+        return ("Kane's reduced equations of the independent speeds, the dependent ones eliminated by the "
+                "velocity constraints")
+    if w.system.n_constraints:
+        return ("M ud = F - A^T lam with the constraints at acceleration level, A ud = gamma (Lagrange's "
+                "equations of the first kind; gamma holds Baumgarte's terms when alpha or beta is set)")
+    return "M ud = F"
+
+
 def _accel_c(w: KernelWriter, kernel) -> dict:
     prefix = w.prefix
     body = [f"{w.real} qd[{w.n_q}];",
             f"return {prefix}_finite_result({prefix}_dynamics(t, x, {w.rp}, qd, ud, 0), ud, {w.n_u});"]
     return record("int", f"{prefix}_accel", f"{w.driven_arguments}, {w.real} *ud",
-                  "Generalized accelerations ud solving M ud = F; returns a status code.", body)
+                  f"Generalized accelerations ud solving {_accelerations_solve(w)}; returns a status code.", body)
 
 
 def _rhs_c(w: KernelWriter, kernel) -> dict:
@@ -286,8 +297,8 @@ def _rhs_c(w: KernelWriter, kernel) -> dict:
     body = [f"return {prefix}_finite_result({prefix}_dynamics(t, x, {w.rp}, xdot, xdot + {w.n_q}, 0), xdot, {size});"]
     what = "f(t, x, r)" if w.n_inputs else "f(t, x)"
     return record("int", f"{prefix}_rhs", f"{w.driven_arguments}, {w.real} *xdot",
-                  f"First-order right-hand side xdot = {what}, x = (q, u), {size} values; "
-                  "returns a status code. xdot must not alias x.", body)
+                  f"First-order right-hand side xdot = {what}, x = (q, u), {size} values, ud solving "
+                  f"{_accelerations_solve(w)}; returns a status code. xdot must not alias x.", body)
 
 
 def _energy_c(w: KernelWriter, kernel) -> dict:
@@ -994,7 +1005,7 @@ def _constrained_solve_lines(w: KernelWriter, kernel, nonzero, failure) -> list:
     body += factor + ldlt_substitution_lines(n, LD, real, lambda i: f"F_{i}", lambda i: f"z[{i}]")
     body.append(f"for (c = 0; c < {m}; ++c) {{  /* Y = M^-1 A^T */")
     body += ["    " + line for line in ldlt_substitution_lines(
-        n, LD, real, lambda i: f"A[c * {n} + {i}]", lambda i: f"Y[{i * m} + c]")]
+        n, LD, real, lambda i: f"A[c * {n} + {i}]", lambda i: f"Y[{i * m} + c]", names=("yc", "wc"))]
     body += ["}",
              f"c = {prefix}_multipliers_solve(A, Y, z, C, lam, gauge ? gauge + {n} : 0);",
              "if (c != 1) return c == 0 ? LCG_SINGULAR_CONSTRAINTS : LCG_NONFINITE_STATE;",
