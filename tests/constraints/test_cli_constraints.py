@@ -31,6 +31,17 @@ def test_an_inconsistent_x0_is_refused_naming_the_constraint(capsys):
     assert code == 2 and error.startswith("lagcodegen simulate: error: --x0") and "constraint 0" in error
 
 
+def test_a_complete_x0_off_the_constraints_is_refused(capsys):
+    """Found by review: a full --x0 off the constraints ran (exit 0) as another system, a rod of
+    0.6 for the catalog's rod of 1, the warning blaming drift. By hand: phi = x^2 + y^2 - l^2 =
+    0.36 - 1 = -0.64 at x = 0.6, y = 0; a consistent full --x0 (0.6, -0.8) runs."""
+    code = main(["simulate", "cartesian_pendulum", "--t-end", "0.1", "--h", "1e-3", "--x0", "x=0.6,y=0"])
+    error = capsys.readouterr().err
+    assert code == 2 and error.count("\n") == 1
+    assert "--x0 is off constraint row 0 of cartesian_pendulum on the positions, phi = -0.64" in error
+    assert main(["simulate", "cartesian_pendulum", "--t-end", "0.1", "--h", "1e-3", "--x0", "x=0.6,y=-0.8"]) == 0
+
+
 SLEIGH = '''
 import sympy as sp, sympy.physics.mechanics as me
 from lagcodegen import Model

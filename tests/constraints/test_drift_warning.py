@@ -76,6 +76,25 @@ def test_a_projected_run_does_not_warn(linkage):
     assert loop_closure(run.x).max() < 1e-9
 
 
+def test_a_start_off_the_positions_alone_is_not_called_drift(linkage):
+    """Found by review: a start off phi = 0 with consistent velocities (here at rest, so A u = 0)
+    ran holding its offset and was blamed on drift ("use project=True ... or a smaller h"). phi by
+    hand as below, at theta2 moved by 0.05 from a consistent state."""
+    x0 = np.array(catalog.four_bar_state(0.3, 1.0), dtype=float)
+    x0[1] += 0.05
+    x0[3:] = 0.0
+    l1, l2, l3, d = 0.1, 0.35, 0.3, 0.4
+    phi_x = l1 * math.cos(x0[0]) + l2 * math.cos(x0[1]) - l3 * math.cos(x0[2]) - d
+    phi_y = l1 * math.sin(x0[0]) + l2 * math.sin(x0[1]) - l3 * math.sin(x0[2])
+    with pytest.warns(ConstraintDriftWarning) as caught:
+        simulate(linkage, x0, t_end=0.01, h=1e-3, residuals=True)
+    message = str(caught[0].message)
+    assert len(caught) == 1 and "started off the constraints on the positions" in message
+    assert "drifted" not in message and "velocities" not in message
+    found = float(re.search(r"max \|phi\| = ([0-9.e-]+) at", message).group(1))
+    assert found == pytest.approx(max(abs(phi_x), abs(phi_y)), rel=1e-2), message
+
+
 def test_a_start_off_both_levels_names_both(linkage):
     """Found by review: theta2 moved by 0.05 from a consistent four-bar state warned of the velocity
     residual alone (0.00165), not of |phi| (0.0146), the larger. phi by hand: the loop closure's
@@ -85,8 +104,9 @@ def test_a_start_off_both_levels_names_both(linkage):
     l1, l2, l3, d = 0.1, 0.35, 0.3, 0.4
     phi_x = l1 * math.cos(x0[0]) + l2 * math.cos(x0[1]) - l3 * math.cos(x0[2]) - d
     phi_y = l1 * math.sin(x0[0]) + l2 * math.sin(x0[1]) - l3 * math.sin(x0[2])
-    with pytest.warns(ConstraintDriftWarning, match="started off the constraints on the velocities") as caught:
+    with pytest.warns(ConstraintDriftWarning, match="started off the constraints on the positions.* and on the "
+                                                    "velocities") as caught:
         simulate(linkage, x0, t_end=0.01, h=1e-3, residuals=True)
     message = str(caught[0].message)
-    found = float(re.search(r"on the positions, max \|phi\| = ([0-9.e-]+),", message).group(1))
+    found = float(re.search(r"on the positions, max \|phi\| = ([0-9.e-]+) and", message).group(1))
     assert found == pytest.approx(max(abs(phi_x), abs(phi_y)), rel=1e-2), message
