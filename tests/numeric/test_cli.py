@@ -146,10 +146,14 @@ def test_simulate_writes_npz_and_png(tmp_path, capsys, reference_pendulum):
 
 def test_simulate_failed_run_exits_1_and_keeps_samples(tmp_path, capsys):
     out = tmp_path / "stiff.npz"
-    with pytest.warns(Warning):  # StabilityWarning at x0, RuntimeWarning at the failure
-        code, text = run_cli(["simulate", "stiff_chain", "--t-end", "1", "--h", "1e-3", "--param", "K=1e8",
-                              "--x0", "x1=0.1,x2=0,x3=0", "--out", out], capsys)
-    assert code == 1 and "NaN or infinite" in text
+    code = main(["simulate", "stiff_chain", "--t-end", "1", "--h", "1e-3", "--param", "K=1e8",
+                 "--x0", "x1=0.1,x2=0,x3=0", "--out", str(out)])
+    captured = capsys.readouterr()
+    assert code == 1 and "NaN or infinite" in captured.out
+    # the RuntimeWarning at the failure, one line
+    (line,) = captured.err.splitlines()
+    assert re.fullmatch(r"lagcodegen simulate: warning: rk4 stopped at step \d+ \(t = [\d.]+\): the state or its "
+                        r"derivatives became NaN or infinite \(the run diverged\)", line), line
     data = np.load(out)
     assert int(data["status"]) == Status.NONFINITE_STATE
     assert 1 < len(data["t"]) < 1001 and np.all(np.isfinite(data["x"]))
@@ -443,3 +447,46 @@ def test_linearize_prints_a_b_and_the_modes(tmp_path, capsys):
     assert out.count("  2  0.05") == 2
     assert "'G' is not an input" in cli_error(["linearize", str(path), "--inputs", "G=1"], capsys)
     assert "'y' is not a state" in cli_error(["linearize", str(path), "--at", "y=1"], capsys)
+
+
+def test_ctrl_c_stops_a_long_simulate_at_once(tmp_path):
+    """Found by review: simulate made one blocking C call, so Ctrl-C stopped it only when the whole
+    loop had run (a run of 1e8 steps, 20 s after the signal; one of 3e15 steps never). Now the
+    call runs in a thread and the command exits 130 promptly. The run here takes minutes (1e9
+    steps), so an exit within 60 s of the signal is the interruption, not the end of the run."""
+    import os
+    import signal
+    import sys
+    import time
+
+    env = dict(os.environ, LAGCODEGEN_CACHE_DIR=str(tmp_path / "cache"))
+    command = [sys.executable, "-m", "lagcodegen.cli.commands", "simulate", "double_pendulum", "--h", "1e-3",
+               "--x0", "q1=1,q2=0"]
+    subprocess.run(command + ["--t-end", "0.01"], env=env, capture_output=True, check=True, timeout=300)  # compiled
+    process = subprocess.Popen(command + ["--t-end", "1e6", "--stride", "1000000"], env=env, stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE, text=True)
+    time.sleep(6)  # imports and the cached build: then it is in the C loop
+    process.send_signal(signal.SIGINT)
+    try:
+        _, err = process.communicate(timeout=60)
+    except subprocess.TimeoutExpired:
+        process.kill()
+        pytest.fail("simulate did not stop within 60 s of Ctrl-C")
+    assert process.returncode == 130 and "interrupted" in err, err
+
+
+def test_flags_prefixes_and_warnings_are_one_line_each(capsys):
+    """Found by review: --traceback after the command gave a traceback of argparse's refusal and
+    exit 1; an unknown option of a command was reported as "lagcodegen: error"; warnings came as
+    Python's file:line: Category: text and the source line. A run that stops early (m2 < 0: a
+    singular mass matrix) warns."""
+    assert main(["derive", "double_pendulum", "--traceback"]) == 0
+    capsys.readouterr()
+    assert main(["derive", "double_pendulum", "--bogus"]) == EXIT_USAGE
+    assert capsys.readouterr().err.startswith("lagcodegen derive: error: unrecognized arguments: --bogus")
+    code = main(["simulate", "double_pendulum", "--t-end", "0.1", "--h", "1e-3", "--x0", "q1=1,q2=0",
+                 "--param", "m2=-1"])
+    err = capsys.readouterr().err
+    assert code == EXIT_FAILED
+    lines = [line for line in err.splitlines() if line]
+    assert lines and all(line.startswith("lagcodegen simulate: warning: ") for line in lines), err

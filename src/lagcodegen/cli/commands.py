@@ -15,6 +15,7 @@ import os
 import sys
 import textwrap
 import time
+import warnings
 from pathlib import Path
 
 import sympy as sp
@@ -232,6 +233,7 @@ def make_parser() -> Parser:
     parser.add_argument("--traceback", action="store_true",
                         help="on an error, show the Python traceback (also: LAGCODEGEN_DEBUG=1)")
     commands = parser.add_subparsers(dest="command", required=True, metavar="command")
+    parser.command_names = commands.choices  # the commands' names, for the error prefix before parsing
     commands.add_parser("examples", help="list the built-in textbook models").set_defaults(run=cmd_examples)
     commands.add_parser("demo", help="derive, compile and simulate the double pendulum").set_defaults(run=cmd_demo)
     derive = commands.add_parser("derive", help="derive and print M(q,t) ud = F(q,u,t)")
@@ -296,18 +298,34 @@ def run_command(argv) -> int:
     error: <message>``, and an exit code (see the module doc)."""
     argv = join_negative_numbers(argv)
     debug = "--traceback" in argv or os.environ.get("LAGCODEGEN_DEBUG", "").strip() not in ("", "0")
-    prog = "lagcodegen"
+    # a flag of the whole command line, wherever it stands (found by review: after the command,
+    # argparse refused it with a traceback and exit 1)
+    argv = [a for a in argv if a != "--traceback"]
+    parser = make_parser()
+    named = next((a for a in argv if not a.startswith("-")), None)
+    prog = f"lagcodegen {named}" if named in parser.command_names else "lagcodegen"
     try:
-        args = make_parser().parse_args(argv)
-        prog = f"lagcodegen {args.command}"
-        return args.run(args)
+        with warnings.catch_warnings():
+            warnings.showwarning = _one_line_warning(prog)
+            args = parser.parse_args(argv)
+            prog = f"lagcodegen {args.command}"
+            return args.run(args)
     except Exception as error:  # re-raised below unless classify() knows it as a reported error
         verdict = classify(error)
         if verdict is None or debug:
             raise
         code, message = verdict
-        print(f"{getattr(error, 'prog', None) or prog}: error: {message}", file=sys.stderr)
+        named = getattr(error, "prog", None)  # the top-level parser reports a command's unknown options too
+        print(f"{prog if named in (None, 'lagcodegen') else named}: error: {message}", file=sys.stderr)
         return code
+
+
+def _one_line_warning(prog: str):
+    """Warnings as the errors are printed, one line naming the command (found by review: they
+    came as Python's file:line: Category: text, then the source line)."""
+    def show(message, category, filename, lineno, file=None, line=None):
+        print(f"{prog}: warning: {message}", file=sys.stderr if file is None else file)
+    return show
 
 
 def main(argv=None) -> int:

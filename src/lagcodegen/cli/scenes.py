@@ -13,7 +13,7 @@ from .arguments import (
     parse_inputs,
     positive_float,
 )
-from .runs import check_steps, compile_for, prepare_run
+from .runs import check_steps, compile_for, interruptible, prepare_run
 
 #: the step of an animation run unless --h says otherwise (a frame every 40 samples at 25 fps)
 ANIMATE_H = 1e-3
@@ -112,9 +112,9 @@ def cmd_animate(args) -> int:
     energy = eom.energy is not None
     system = compile_for(eom, args.method, fixed, energy=energy, points=True)
     try:
-        run = simulate(system, x0, args.t_end, args.h, args.method, params=params, stride=args.stride,
-                       energy=energy, points=True, project=args.project, inputs=parse_inputs(args.input),
-                       hold=args.hold)
+        run = interruptible(lambda: simulate(
+            system, x0, args.t_end, args.h, args.method, params=params, stride=args.stride, energy=energy,
+            points=True, project=args.project, inputs=parse_inputs(args.input), hold=args.hold))
     except InputError as error:
         raise UsageError(f"--input: {error}") from None
     print(f"{eom.name}, {run.method}, h = {args.h:g} to t = {args.t_end:g}: {run.message}")
