@@ -204,20 +204,23 @@ def _fixed_key(value) -> str:
 
 
 def _aliased_sources(alias: Path, cache_dir) -> tuple[Path, str]:
-    """(the sources entry a model entry names, its key); a missing or damaged one names none."""
+    """(the sources entry a model entry names, its key); a missing or damaged one names none, and
+    so does one written under another name: its body names the entry it was stored as (found by
+    review: an intact entry copied over another model's file loaded that model's kernel, status OK)."""
     try:
         head, _, body = alias.read_bytes().partition(b"\n")
     except OSError:
         return alias.with_suffix(".missing"), ""
-    if head != f"{_SOURCES_MAGIC} {hashlib.sha256(body).hexdigest()}".encode("ascii") or len(body) != 64 or \
-            not all(c in b"0123456789abcdef" for c in body):
+    name, _, key = body.partition(b" ")
+    if head != f"{_SOURCES_MAGIC} {hashlib.sha256(body).hexdigest()}".encode("ascii") or len(key) != 64 or \
+            not all(c in b"0123456789abcdef" for c in key) or name != alias.name.encode("utf-8"):
         return alias.with_suffix(".missing"), ""
-    key = body.decode("ascii")
+    key = key.decode("ascii")
     return cache.cache_dir(cache_dir) / "sources" / f"{key[:32]}.json", key
 
 
 def _store_alias(alias: Path, key: str) -> None:
-    body = key.encode("ascii")
+    body = f"{alias.name} {key}".encode()
     _write_atomically(alias, f"{_SOURCES_MAGIC} {hashlib.sha256(body).hexdigest()}\n".encode("ascii") + body)
 
 

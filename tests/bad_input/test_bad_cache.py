@@ -129,6 +129,23 @@ def test_another_models_intact_entry_copied_over_this_ones_is_not_loaded(fresh_c
     assert run.ok and run.x[-1, 0] == pytest.approx(math.cos(1.0), abs=1e-10)
 
 
+def test_another_models_model_entry_copied_over_this_ones_is_not_followed(fresh_cache):
+    """Found by review: a model entry (sources/model-*.txt, which names the sources entry of a
+    Model's derivation) copied over another model's was followed, and the run gave the other
+    model's answer with status OK. Here the entries of fixed k = 1 and k = 4 are swapped: the
+    k = 1 model must still give x(1) = cos(1) (unit mass, x(0) = 1, by hand), not cos(2)."""
+    compile_model(_oscillator("swap"), methods=("rk4",), fixed={"k": 1.0})
+    first = {p for p in (fresh_cache / "sources").iterdir() if p.name.startswith("model-")}
+    compile_model(_oscillator("swap"), methods=("rk4",), fixed={"k": 4.0})
+    (second,) = {p for p in (fresh_cache / "sources").iterdir() if p.name.startswith("model-")} - first
+    for target in first:
+        target.write_bytes(second.read_bytes())
+    build._MEMO.clear()  # as in a new process: only the disk serves
+    again = compile_model(_oscillator("swap"), methods=("rk4",), fixed={"k": 1.0})
+    run = simulate(again, [1.0, 0.0], t_end=1.0, h=1e-3)
+    assert run.ok and run.x[-1, 0] == pytest.approx(math.cos(1.0), abs=1e-10)
+
+
 def test_fixed_values_that_print_alike_are_different_kernels(fresh_cache):
     """Found by review: the model entry keyed a fixed value by repr, and repr(sp.Float(1.4, 2)) is
     '1.4' while it folds as 1.400390625: the plain 1.4 then reused that kernel. x(1) =
