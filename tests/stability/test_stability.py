@@ -380,3 +380,31 @@ def test_float_implicit_steps_are_not_accepted_before_they_converge(tmp_path):
         assert np.abs(run.x[-1] - root).max() < 1e-4 * (1 + np.abs(root).max()), (run.x[-1], root)
     else:
         assert run.status == Status.NEWTON_FAILED
+
+
+def test_a_slowly_converging_newton_iteration_is_not_taken_for_a_stalled_one(tmp_path):
+    """Found by review: on a saturating spring (V = x^2/2 + K (sqrt(1 + x^4) - 1)/2, K = 1e6: soft
+    near 0, stiff beyond |x| = 1), one backward Euler step from x = -64.6 with h = 5.29 returned OK
+    1e-2 from the step's root: the Jacobian, frozen where the spring is 1e5 times stiffer than at
+    the root, made the iteration creep with tiny increments, which the stall rule took for the
+    rounding of f. Now a stall is accepted only when the stage residual is at that rounding. The
+    root by mpmath at 50 digits: x + h^2 g(x) = x0 + h v0, g = dV/dx, unique (monotone)."""
+    import mpmath as mp
+
+    x = me.dynamicsymbols("x")
+    stiff = sp.Symbol("K", positive=True)
+    model = Model("saturating_spring", [x], [stiff], kinetic_energy=x.diff() ** 2 / 2,
+                  potential_energy=x ** 2 / 2 + stiff * (sp.sqrt(1 + x ** 4) - 1) / 2, parameter_values={stiff: 1e6})
+    system = compile_model(model, methods=("backward_euler",), cache_dir=tmp_path)
+    x0, v0, h = -64.55876219, 12.33505363, 5.29
+    run = simulate(system, [x0, v0], t_end=h, h=h, method="backward_euler", check_stability=False)
+    with mp.workdps(50):
+        K = mp.mpf(10) ** 6
+        g = lambda y: y + K * y ** 3 / mp.sqrt(1 + y ** 4)  # noqa: E731
+        c = mp.mpf(x0) + mp.mpf(h) * mp.mpf(v0)
+        root = mp.findroot(lambda y: y + mp.mpf(h) ** 2 * g(y) - c, (-abs(c) - 1, abs(c) + 1), solver="anderson")
+        exact = np.array([float(root), float(mp.mpf(v0) - mp.mpf(h) * g(root))])
+    if run.ok:
+        assert np.abs(run.x[-1] - exact).max() <= 1e-10 * (1 + np.abs([x0, v0]).max()), (run.x[-1], exact)
+    else:
+        assert run.status == Status.NEWTON_FAILED, run.message

@@ -19,6 +19,9 @@ NEWTON_TOLERANCE = {"double": 1e-13, "float": 1e-5}
 NEWTON_STALL = 0.9
 NEWTON_FLOOR = {"double": 1e-9, "float": NEWTON_TOLERANCE["float"]}
 NEWTON_MAX_ITERATIONS = 30
+#: ... and a stalled iteration is accepted only when the stage equations' residual is within this
+#: many units of rounding of the terms of f at the stages (h sum |a_ij| sum |J_ml| |X_jl| + |W_im|)
+NEWTON_NOISE = {"double": 1e3 * 2.0 ** -52, "float": 1e3 * 2.0 ** -23}
 
 #: The drivers' singularity monitor (``<prefix>_gauge_check`` in templates/steppers.c.j2) reads the
 #: pivots the solves already produce at each accepted state: the LDL^T pivots of M and, with
@@ -59,6 +62,7 @@ def stepper_context(system, names, real: str, methods: list) -> dict:
                "one": _literal(1, real), "fsuffix": "f" if real == "float" else "",
                "newton_tolerance": _literal(NEWTON_TOLERANCE[real], real), "newton_max": NEWTON_MAX_ITERATIONS,
                "newton_stall": _literal(NEWTON_STALL, real), "newton_floor": _literal(NEWTON_FLOOR[real], real),
+               "newton_noise": _literal(NEWTON_NOISE[real], real),
                "n_state_squared": N * N, "n_squared": n * n, "se_work": 3 * n * n + 5 * n + N,
                "has_energy": "energy" in system.outputs, "has_points": points > 0,
                "n_point_values": 3 * points, "work_size": N, "method_rows": [], "gauge_size": G,
