@@ -414,7 +414,9 @@ static int lcg_gear_hoist_irk_step(int s, const double *a, const double *b, cons
             status = lcg_gear_hoist_dynamics(t + c[i] * h, xs, p, K + i * 2, K + i * 2 + 1,
                                            iteration == 0 && i == 0 ? gauge : 0);
             if (status == LCG_NONFINITE_STATE) return LCG_NEWTON_FAILED; /* a diverged iterate */
-            if (status != LCG_OK) return status;
+            /* the first pass reads the state itself; later ones iterates, which a diverging iteration can
+             * take onto a singular M (found by review: radau_iia3 reported a singular mass matrix there) */
+            if (status != LCG_OK) return iteration == 0 ? status : LCG_NEWTON_FAILED;
         }
         residual = 0.0;  /* the stage equations' residual against the rounding of f at the stages */
         for (i = 0; i < s; ++i) {
@@ -516,7 +518,9 @@ static int lcg_gear_hoist_symplectic_euler_step(double t, double *x, const doubl
             if (change > size) size = change;
             v[i] = b[i];
         }
-        if (!isfinite(size)) return LCG_NEWTON_FAILED;
+        /* from the state itself (the first pass), forces that overflowed: the run diverged, no Newton
+         * failure (found by review: a stiff spring's overflow was reported as one) */
+        if (!isfinite(size)) return iteration == 0 ? LCG_NONFINITE_STATE : LCG_NEWTON_FAILED;
         if (size <= 1e-13) break;
     }
     if (iteration == 30) return LCG_NEWTON_FAILED;

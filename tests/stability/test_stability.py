@@ -408,3 +408,27 @@ def test_a_slowly_converging_newton_iteration_is_not_taken_for_a_stalled_one(tmp
         assert np.abs(run.x[-1] - exact).max() <= 1e-10 * (1 + np.abs([x0, v0]).max()), (run.x[-1], exact)
     else:
         assert run.status == Status.NEWTON_FAILED, run.message
+
+
+def test_failures_are_named_by_what_failed(tmp_path):
+    """Found by review: symplectic Euler on a linear spring (constant M, no iteration needed) far
+    past its stability limit (h w = 0.01 * 1e4 = 100 > 2) overflowed and was reported as a Newton
+    failure; radau_iia3 from a regular state (M = diag(a - q2^2, 1), pivot 0.75 at q2 = 0.5) with a
+    step too large for its Newton iteration reported a singular mass matrix where an iterate had
+    wandered past |q2| = 1, while backward Euler and the implicit midpoint rule report the
+    iteration's failure."""
+    x = me.dynamicsymbols("x")
+    m, k = sp.symbols("m k", positive=True)
+    spring = compile_model(Model("se_spring", [x], [m, k], kinetic_energy=m * x.diff() ** 2 / 2,
+                                 potential_energy=k * x ** 2 / 2, parameter_values={m: 1.0, k: 1e8}),
+                           methods=("symplectic_euler",), cache_dir=tmp_path)
+    run = simulate(spring, [1.0, 0.0], t_end=1.0, h=0.01, method="symplectic_euler", check_stability=False)
+    assert run.status == Status.NONFINITE_STATE, run.message
+    q1, q2 = me.dynamicsymbols("q1 q2")
+    a = sp.Symbol("a", positive=True)
+    degenerate = compile_model(Model("degenerate", [q1, q2], [a], parameter_values={a: 1.0},
+                                     kinetic_energy=((a - q2 ** 2) * q1.diff() ** 2 + q2.diff() ** 2) / 2),
+                               methods=("backward_euler", "implicit_midpoint", "radau_iia3"), cache_dir=tmp_path)
+    for method in ("backward_euler", "implicit_midpoint", "radau_iia3"):
+        run = simulate(degenerate, [0.0, 0.5, 2.0, 0.3], t_end=3.0, h=3.0, method=method, check_stability=False)
+        assert run.status == Status.NEWTON_FAILED, (method, run.message)
