@@ -18,6 +18,7 @@ from __future__ import annotations
 import dataclasses
 import inspect
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -313,6 +314,29 @@ def test_a_gif_too_large_for_memory_is_refused_before_drawing(monkeypatch, tmp_p
     run = synthetic()  # 0.2 s at speed 1, 25 fps (40 ms): frames at 0, ..., 0.2, 6 of them
     with pytest.raises(OutputTooLargeError, match=r"a GIF of 6 frames of 800 x 800 pixels"):
         animate(run, tmp_path / "scene.gif", size=(10.0, 10.0), dpi=80)
+
+
+def test_a_gif_frame_too_long_is_refused_and_a_failed_write_keeps_the_old_file(tmp_path, monkeypatch, capsys):
+    """Found by review: --fps 0.001 (a frame of 1000 s) gave Pillow's OverflowError as a traceback
+    and truncated the existing GIF to 800 bytes. A GIF's frame delay is a 16-bit count of 10 ms, at
+    most 655.35 s. Now that fps is refused before anything runs, and a write that fails for any
+    reason leaves the old file as it was."""
+    out = tmp_path / "keep.gif"
+    out.write_bytes(b"old animation")
+    code = main(["animate", "double_pendulum", "--x0", "q1=1,q2=0", "--t-end", "0.1", "--fps", "0.001",
+                 "--out", str(out)])
+    err = capsys.readouterr().err
+    assert code == 2 and "--fps 0.001: a GIF frame lasts at most 655.35 s" in err, err
+    from matplotlib.animation import FuncAnimation
+
+    def broken(self, *args, **kwargs):
+        Path(args[0]).write_bytes(b"half")
+        raise OSError("disk full")
+
+    monkeypatch.setattr(FuncAnimation, "save", broken)
+    with pytest.raises(OSError, match="disk full"):
+        animate(synthetic(), out)
+    assert out.read_bytes() == b"old animation" and sorted(p.name for p in tmp_path.iterdir()) == ["keep.gif"]
 
 
 def test_output_path_that_is_a_directory_is_named(tmp_path):

@@ -265,6 +265,11 @@ def test_the_cli_names_an_unknown_model_and_a_directory(tmp_path, capsys):
     assert main(["fmu", "no_such_model", "--out", str(tmp_path / "x.fmu")]) == 2
     assert "model 'no_such_model' is neither an example" in capsys.readouterr().err
     assert main(["fmu", "double_pendulum", "--out", str(tmp_path)]) == 2
+    # found by review: any name was taken, the model's own .py file replaced by the archive
+    source = tmp_path / "model.py"
+    source.write_text("model = None\n")
+    assert main(["fmu", "double_pendulum", "--out", str(source), "--no-binary"]) == 2
+    assert source.read_text() == "model = None\n"
     assert f"FMU path '{tmp_path}' is a directory" in capsys.readouterr().err
 
 

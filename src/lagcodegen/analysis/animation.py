@@ -12,6 +12,7 @@ Pillow, MP4s with ffmpeg (matplotlib's ``FFMpegWriter``). Real-time playback: se
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -244,5 +245,13 @@ def write_animation(animation: FuncAnimation, target: Path, interval: float, dpi
         writer = PillowWriter(fps=1000.0 / (interval + 1e-6))
     else:
         writer = FFMpegWriter(fps=1000.0 / interval)
-    animation.save(str(target), writer=writer, dpi=dpi)
+    # written beside the target, then moved there: a failed write leaves an existing file as it was
+    # (found by review: one was truncated to 800 bytes)
+    partial = target.with_name(f".{target.stem}.{os.getpid()}.partial{target.suffix}")
+    try:
+        animation.save(str(partial), writer=writer, dpi=dpi)
+        os.replace(partial, target)
+    finally:
+        if partial.exists():
+            partial.unlink()
     return target

@@ -155,11 +155,19 @@ def frame_samples(t: np.ndarray, interval: float, speed: float) -> np.ndarray:
     return samples
 
 
+#: the longest frame a GIF holds: its delay is a 16-bit count of hundredths of a second
+GIF_LONGEST_FRAME_MS = 655_350.0
+
+
 def frame_interval(fps: float, gif: bool) -> float:
     """Milliseconds between frames: 1000 / fps, rounded to 10 ms (at least 20) for a GIF."""
     fps = _positive(fps, "fps")
     interval = 1000.0 / fps
+    if gif and interval > GIF_LONGEST_FRAME_MS:  # found by review: Pillow's OverflowError, the old file truncated
+        raise AnimationError(f"fps {fps:g}: a GIF frame lasts at most {GIF_LONGEST_FRAME_MS / 1000:g} s (a 16-bit "
+                             f"count of 10 ms), so fps must be at least {1000 / GIF_LONGEST_FRAME_MS:.3g}")
     return max(20.0, 10.0 * round(interval / 10.0)) if gif else interval
+
 
 
 def compose_scene(trajectory: Trajectory, *, points: Sequence[str] | None = None,

@@ -66,7 +66,7 @@ def animation_request(args) -> tuple:
     import numpy as np
 
     from ..analysis.animation import check_output
-    from ..analysis.scenes import AnimationError, project, scene_names
+    from ..analysis.scenes import AnimationError, frame_interval, project, scene_names
 
     try:
         target = check_output(args.out, "--out")
@@ -84,6 +84,7 @@ def animation_request(args) -> tuple:
     try:
         scene_names(tuple(model.points), request["points"], request["links"], request["trace"], prefix="--")
         project(np.zeros(3), request["projection"])
+        frame_interval(args.fps, target.suffix.lower() == ".gif")  # before anything runs
     except AnimationError as error:
         message = str(error)
         raise UsageError(message if message.startswith("--") else f"--{message}") from None

@@ -153,6 +153,8 @@ def _checked_path(path) -> Path:
         raise FmuError(f"FMU path {str(path)!r}: its folder {str(target.parent)!r} does not exist")
     if target.exists() and not target.is_file():  # a device or a FIFO (/dev/null) would be replaced by a file
         raise FmuError(f"FMU path {str(path)!r} exists and is not a regular file; give a file name")
+    if target.suffix.lower() != ".fmu":  # the standard's extension; found by review: the model's own .py was replaced
+        raise FmuError(f"FMU path {str(path)!r}: give a file name ending in .fmu")
     return target
 
 
