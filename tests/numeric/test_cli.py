@@ -209,6 +209,15 @@ def test_a_table_saved_with_a_byte_order_mark_reads(tmp_path, capsys):
     np.testing.assert_array_equal(np.load(out)["values"], [[1, 2], [3, 4]])
 
 
+def test_a_table_that_is_not_utf8_is_named(tmp_path, capsys):
+    # found by review: "'utf-8' codec can't decode byte 0xff in position 0", naming neither
+    table = tmp_path / "members.csv"
+    table.write_bytes(b"\xffm2,l2\n1,2\n")
+    message = cli_error(["sweep", "double_pendulum", "--table", table, "--t-end", "0.01", "--h", "1e-3",
+                         "--x0", "q1=1,q2=0.5"], capsys)
+    assert f"--table {table}: not a UTF-8 text file (byte 0" in message, message
+
+
 def test_sweep_reports_a_failed_chunk_and_exits_non_zero(tmp_path, capsys, monkeypatch):
     """A chunk that raises (a lost worker, a bug) used to be summed up as an interruption: now the
     command names the members and the error, counts them apart from members not run, and exits 1."""

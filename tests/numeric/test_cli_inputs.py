@@ -94,6 +94,14 @@ def test_a_sweep_over_the_input(model_file, tmp_path, capsys):
     np.testing.assert_allclose(data["x_final"][:, 0], step_response(2.0, np.array([0.5, 2.0])), atol=1e-8)
 
 
+def test_an_input_both_swept_and_given_is_refused(model_file, capsys):
+    # found by review: the grid's values won and --input F=3 was silently ignored
+    code = main(["sweep", str(model_file), "--t-end", "2", "--h", "1e-3", "--x0", "x=0", "--grid", "F=0.5,2",
+                 "--input", "F=3"])
+    assert code == EXIT_USAGE
+    assert "--input 'F' is swept by --grid/--table too" in capsys.readouterr().err
+
+
 @pytest.mark.parametrize("extra, message", [
     ([], "driven by the input"),
     (["--input", "F=nope.csv"], "'nope.csv' is neither a number nor a file"),

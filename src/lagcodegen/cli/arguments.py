@@ -248,6 +248,8 @@ def read_table(path: str) -> dict:
             rows = [row for row in csv.reader(handle) if any(cell.strip() for cell in row)]
     except OSError as error:
         raise UsageError(f"--table {path}: {error.strerror}") from None
+    except UnicodeDecodeError as error:  # found by review: the message named neither the file nor the option
+        raise UsageError(f"--table {path}: not a UTF-8 text file (byte {error.start}: {error.reason})") from None
     if len(rows) < 2:
         raise UsageError(f"--table {path} needs a header row of names and at least one member row")
     header = [cell.strip() for cell in rows[0]]

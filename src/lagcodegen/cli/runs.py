@@ -419,6 +419,10 @@ def cmd_sweep(args) -> int:
         if name in [q.name for q in eom.q]:
             x0.setdefault(name, float(members[name][0]))
     field = check_sweep_outputs(args, members, eom)
+    inputs = parse_inputs(args.input)
+    both = sorted(set(inputs or ()) & set(members))
+    if both:  # found by review: the swept values won and --input was silently ignored
+        raise UsageError(f"--input {both[0]!r} is swept by --grid/--table too; drop one of them")
     start = time.perf_counter()
     system = compile_for(eom, args.method, fixed, energy=True, points=False)
     compile_time = time.perf_counter() - start
@@ -428,7 +432,7 @@ def cmd_sweep(args) -> int:
         result = sweep(system, **({"grid": members} if args.grid else {"members": members}), x0=x0,
                        t_end=args.t_end, h=args.h, method=args.method, params=params,
                        trajectories=args.trajectories, stride=args.stride, threads=args.threads, client=client,
-                       project=args.project, inputs=parse_inputs(args.input), hold=args.hold)
+                       project=args.project, inputs=inputs, hold=args.hold)
     except InputError as error:
         raise UsageError(f"--input: {error}") from None
     finally:
