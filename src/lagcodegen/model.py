@@ -72,6 +72,18 @@ class Load:
         return isinstance(self.where, me.ReferenceFrame)
 
 
+def _given(value) -> bool:
+    """A Model field set to something other than its empty default (0, None, (), {})."""
+    if value is None:
+        return False
+    if isinstance(value, (Mapping, Sequence)) and not isinstance(value, str):
+        return len(value) > 0
+    try:
+        return bool(sp.sympify(value) != 0)
+    except (sp.SympifyError, TypeError):
+        return True
+
+
 @dataclass(frozen=True)
 class Model:
     """A mechanical system, validated, ready for `derive.derive_equations`.
@@ -370,9 +382,21 @@ class Model:
         if self.sympy_model is not None:
             if self.kinetic_energy is not None or self.bodies:
                 raise ModelError("give either sympy_model or kinetic_energy/bodies, not both")
+            # found by review: these were accepted and silently left out of the equations
+            ignored = [name for name in ("generalized_forces", "dissipation", "loads", "gravity", "constraints")
+                       if _given(getattr(self, name))]
+            if ignored:
+                raise ModelError(f"model {self.name!r}: a sympy model brings its own forces and constraints; "
+                                 f"{', '.join(ignored)} would be left out: put them into the sympy model "
+                                 "(its loads, hol_coneqs, ...)")
             return
         if self.bodies and self.kinetic_energy is not None:
             raise ModelError("give either kinetic_energy (energies route) or bodies, not both")
+        if not self.bodies:
+            ignored = [name for name in ("loads", "gravity") if _given(getattr(self, name))]
+            if ignored:  # found by review: accepted on the energies route and left out of F
+                raise ModelError(f"model {self.name!r}: {', '.join(ignored)} act on bodies (Model(bodies=[...])); "
+                                 "by energies, give their work as generalized_forces or potential_energy")
         if not self.bodies and self.kinetic_energy is None:
             raise ModelError(f"model {self.name!r} needs a kinetic energy, bodies or a sympy model")
         needs_frame = bool(self.bodies) or any(isinstance(p, me.Point) for p in self.points.values())

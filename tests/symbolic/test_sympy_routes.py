@@ -383,3 +383,77 @@ def test_pendulum_with_oscillating_support(direction, route):
     acceleration = eom.forcing[0] / eom.mass_matrix[0, 0]
     assert sp.simplify(acceleration - F / (mass * length ** 2)) == 0
     assert t in acceleration.free_symbols  # rheonomic: explicit time survives
+
+
+def _turning_frame_particle():
+    """A particle on a spring k (x^2 + y^2)/2, coordinates x, y in a frame B turning at w about N.z."""
+    x, y = me.dynamicsymbols("x y")
+    m, w, k = sp.symbols("m w k", positive=True)
+    N, B = me.ReferenceFrame("N"), me.ReferenceFrame("B")
+    B.orient_axis(N, N.z, w * me.dynamicsymbols._t)
+    O = me.Point("O")
+    O.set_vel(N, 0)
+    P = O.locatenew("P", x * B.x + y * B.y)
+    P.set_vel(B, x.diff() * B.x + y.diff() * B.y)
+    P.v1pt_theory(O, N, B)
+    particle = me.Particle("p", P, m)
+    V = k * (x ** 2 + y ** 2) / 2
+    return x, y, (m, w, k), N, particle, V
+
+
+def test_a_lagranges_method_energy_is_not_split_wrongly():
+    """Found by review: T and V were taken as L - L(u=0) and -L(u=0), which moves the speed-free part
+    of T (a moving frame's) into V with the wrong sign: T = -1.5, V = -1.5 at x = 1, y = 0, x' = 0,
+    y' = -1, where by hand the velocity in N is (x' - w y, y' + w x) = (0, 1) for w = 2, so
+    T = m/2 |v_N|^2 = 0.5, and V = k/2 (x^2 + y^2) = 0.5. Now a
+    LagrangesMethod with its bodies and frame gives T and V from them; one with L alone, where the
+    split is ambiguous (terms of degree 1 in the speeds), gives no energy."""
+    x, y, (m, w, k), N, particle, V = _turning_frame_particle()
+    values = {m: 1.0, w: 2.0, k: 1.0}
+    L = me.Lagrangian(N, particle) - V
+    with_bodies = me.LagrangesMethod(L, [x, y], bodies=[particle], frame=N)
+    eom = derive_equations(Model("turning", parameters=[m, w, k], sympy_model=with_bodies, parameter_values=values))
+    state = {**values, **dict(zip(eom.q, (1.0, 0.0))), **dict(zip(eom.u, (0.0, -1.0)))}
+    assert float(eom.kinetic_energy.xreplace(state)) == pytest.approx(0.5, abs=1e-14)
+    assert float(eom.potential_energy.xreplace(state)) == pytest.approx(0.5, abs=1e-14)
+    alone = derive_equations(Model("turning_alone", parameters=[m, w, k], sympy_model=me.LagrangesMethod(L, [x, y]),
+                                   parameter_values=values))
+    assert alone.energy is None
+
+
+def test_fields_a_route_does_not_read_are_refused():
+    """Found by review: loads and gravity on the energies route, and generalized forces,
+    dissipation, loads, gravity and constraints beside a sympy model, were accepted and left out
+    of the equations (F = 0 where F0 - m g was given)."""
+    from lagcodegen import ModelError
+
+    x = me.dynamicsymbols("x")
+    m, g, c = sp.symbols("m g c", positive=True)
+    N = me.ReferenceFrame("N")
+    O = me.Point("O")
+    P = O.locatenew("P", x * N.y)
+    with pytest.raises(ModelError, match="loads, gravity act on bodies"):
+        Model("falling", [x], [m, g], kinetic_energy=m * x.diff() ** 2 / 2, loads=[(P, m * N.y)], gravity=-g * N.y,
+              frame=N, origin=O)
+    lm = me.LagrangesMethod(m * x.diff() ** 2 / 2, [x])
+    for field, value in (("generalized_forces", {x: -c * x.diff()}), ("dissipation", c * x.diff() ** 2 / 2),
+                         ("gravity", -g * N.y), ("constraints", [x - 1])):
+        with pytest.raises(ModelError, match=f"a sympy model brings its own forces and constraints; {field}"):
+            Model("lm", parameters=[m, g, c], sympy_model=lm, **{field: value})
+
+
+def test_a_body_whose_inertia_changes_is_refused_on_the_bodies_route():
+    """Found by review: a skater with Izz = I0 / (1 + a t) got theta'' = 0 on the bodies route, where
+    d/dt(I theta') = 0 gives theta'' = -I'/I theta' (the route's I alpha + w x I w holds for a
+    constant I only). Such a body is refused, naming it and what its inertia changes with."""
+    from lagcodegen import ModelError
+
+    theta = me.dynamicsymbols("theta")
+    i0, a = sp.symbols("I0 a", positive=True)
+    N = me.ReferenceFrame("N")
+    B = N.orientnew("B", "Axis", (theta, N.z))
+    O = me.Point("O")
+    O.set_vel(N, 0)
+    skater = me.RigidBody("skater", O, B, 1, (me.inertia(B, 1, 1, i0 / (1 + a * me.dynamicsymbols._t)), O))
+    with pytest.raises(ModelError, match="the central inertia of body 'skater' changes with t"):
+        derive_equations(Model("skater", [theta], [i0, a], bodies=[skater], frame=N, origin=O))

@@ -16,13 +16,14 @@ instead, so that the sin^2 + cos^2 of a frame spun in time cancels and t drops o
 """
 from __future__ import annotations
 
+import random
 from dataclasses import dataclass
 from typing import Any
 
 import sympy as sp
 import sympy.physics.mechanics as me
 
-from ..model import TIME, Model
+from ..model import TIME, Model, ModelError
 from .equations import EquationsOfMotion, assemble, check_mass_matrix, lagrange_symbols
 from .grouping import GroupedSum, components, sparse_diff
 
@@ -64,8 +65,13 @@ def derive_from_bodies(model: Model) -> EquationsOfMotion:
     term_mass: dict = {}   # (component, s) -> masses of bodies holding s
     M_sum, F_sum = GroupedSum(), GroupedSum()
     T, body_terms, positions = [], [], {}
+    moving = set(q) | set(u) | {t}
     for body in model.bodies:
         m = to_plain(body.mass, f"mass of {body.name}")
+        _check_constant(model, body, "mass", m, moving)
+        if isinstance(body, me.RigidBody):
+            _check_constant(model, body, "central inertia",
+                            to_plain(body.central_inertia.to_matrix(body.frame), f"inertia of {body.name}"), moving)
         r = to_plain(components(body.masscenter.pos_from(O), N), f"position of {body.name}")
         positions[body.masscenter] = r
         terms = [(c, s) for c in range(3) for s in sp.Add.make_args(r[c]) if s != 0]
@@ -112,6 +118,35 @@ def derive_from_bodies(model: Model) -> EquationsOfMotion:
     F = sp.ImmutableMatrix(F)
     return assemble(model, coords, speeds, q, u, M, F, sp.ImmutableMatrix(u), sp.Add(*T), sp.Add(Vx, *V), to_plain,
                     inputs_checked=True, positions=positions)
+
+
+def _check_constant(model: Model, body, what: str, value, moving: set) -> None:
+    """A body's mass and (rigid) central inertia in its own frame must not change with the state
+    or time: this route's inertia forces, m a and I alpha + w x I w, hold for constant ones only
+    (found by review: a skater with I(t) got theta'' = 0 where d/dt(I theta') = 0 gives -I'/I theta')."""
+    value = sp.Matrix([value]) if not isinstance(value, sp.MatrixBase) else sp.Matrix(value)
+    found = [s for s in sorted(value.free_symbols & moving, key=str) if not _numerically_constant(value, s)]
+    if found:
+        raise ModelError(f"model {model.name!r}: the {what} of body {body.name!r} changes with {found[0]}; a body's "
+                         f"{what} must be constant (in its own frame): state the system by its kinetic energy "
+                         "instead (Model(..., kinetic_energy=...))")
+
+
+def _numerically_constant(value: sp.Matrix, symbol) -> bool:
+    """``value`` does not change with ``symbol``, checked at a few sample points: an inertia given in
+    another frame (an axisymmetric wheel's, in the frame before its spin) holds cos^2 + sin^2
+    combinations that are constant, which sympy does not simplify away."""
+    rng = random.Random(20261126)
+    others = sorted(value.free_symbols - {symbol}, key=str)
+    for _ in range(2):
+        point = {s: sp.Float(rng.uniform(0.3, 1.7)) for s in others}
+        base = value.xreplace(point)
+        samples = [base.xreplace({symbol: sp.Float(v)}).evalf(30) for v in (-1.3, 0.4, 2.2)]
+        scale = max((abs(e) for e in samples[0]), default=sp.S.Zero) + 1
+        for other in samples[1:]:
+            if any(abs(a - b) > sp.Float("1e-20") * scale for a, b in zip(samples[0], other)):
+                return False
+    return True
 
 
 def _velocity(terms, motion, q, u, t) -> list:

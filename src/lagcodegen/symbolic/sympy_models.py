@@ -259,13 +259,26 @@ def _formed_method(obj):
 
 
 def _energies(method, model: Model, to_plain):
-    """(T, V): from the Lagrangian L = T - V split at u = 0, or from Kane's bodies."""
+    """(T, V): a LagrangesMethod's from its bodies, else from L = T - V split at u = 0 where that
+    split is T and -V, or Kane's from its bodies; (None, None) when they cannot be told apart."""
     if isinstance(method, me.LagrangesMethod):
         lagrangian = method._L[0] if isinstance(method._L, sp.MatrixBase) else method._L
         L = to_plain(lagrangian, "Lagrangian")
+        extra = to_plain(model.potential_energy, "potential energy")
+        frame = getattr(method, "inertial", None) or model.frame
+        bodies = getattr(method, "_bodies", None) or ()
+        if bodies and frame is not None:
+            T = to_plain(me.kinetic_energy(frame, *bodies), "kinetic energy")
+            return T, T - L + extra
         rest = to_plain(sp.Matrix([c.diff(TIME) for c in method.q]), "speeds")
         at_rest = L.xreplace({s: 0 for s in rest})
-        return L - at_rest, -at_rest + to_plain(model.potential_energy, "potential energy")
+        # a moving frame or support gives T terms of degree 1 and 0 in the speeds; the split at u = 0
+        # would move the latter into V with the wrong sign (found by review: a particle seen from a
+        # turning frame had T = -1.5, V = -1.5 for 0.5 and 0.5): no energy then
+        zero = {s: 0 for s in rest}
+        if any(L.diff(s).xreplace(zero) != 0 for s in rest) or TIME in at_rest.free_symbols:
+            return None, None
+        return L - at_rest, -at_rest + extra
     bodies = method.bodies or ()
     if not bodies or model.frame is None:
         return None, None
