@@ -72,6 +72,20 @@ class Load:
         return isinstance(self.where, me.ReferenceFrame)
 
 
+def _frames_of(value) -> list:
+    """The frames a sympy Vector or Dyadic is written in."""
+    frames = []
+    if isinstance(value, me.Vector):
+        frames = [frame for _, frame in value.args]
+    elif isinstance(value, me.Dyadic):
+        frames = [frame for term in value.args for v in term[1:] for _, frame in v.args]
+    unique: list = []
+    for frame in frames:
+        if frame not in unique:
+            unique.append(frame)
+    return unique
+
+
 def _given(value) -> bool:
     """A Model field set to something other than its empty default (0, None, (), {})."""
     if value is None:
@@ -426,12 +440,26 @@ class Model:
         oriented = [(f"body {body.name!r} (its frame {body.frame})", body.frame) for body in self.bodies
                     if isinstance(body, me.RigidBody)]
         oriented += [(f"torque load on frame {load.where}", load.where) for load in self.loads if load.is_torque]
+        # the frames the vectors are written in too (found by review: a load, gravity or inertia
+        # in an unconnected frame failed with sympy's bare "No connecting orientation path")
+        written = [(f"load on {getattr(load.where, 'name', load.where)}", load.vector) for load in self.loads]
+        written += [("gravity", self.gravity)] if isinstance(self.gravity, me.Vector) else []
+        written += [(f"inertia of body {body.name!r}", body.central_inertia) for body in self.bodies
+                    if isinstance(body, me.RigidBody)]
+        for what, vector in written:
+            for frame in _frames_of(vector):
+                oriented.append((f"{what} (written in frame {frame})", frame))
         for what, frame in oriented:
             try:
                 frame.dcm(self.frame)
             except ValueError as error:
                 raise ModelError(f"{what} is not oriented relative to the inertial frame {self.frame}: "
                                  f"orient it with {frame}.orient_axis(...) ({error})") from None
+        seen: dict = {}
+        for body in self.bodies:  # found by review: a body listed twice had its mass counted twice
+            if id(body) in seen:
+                raise ModelError(f"model {self.name!r}: body {body.name!r} is listed twice in bodies")
+            seen[id(body)] = body
 
     def _check_symbols(self) -> None:
         """Every free symbol is t or declared; every function of t is a coordinate; no nan,

@@ -186,3 +186,46 @@ def test_sympy_model_with_undeclared_parameter():
     kane.kanes_equations([me.Particle("ball", P, m)], [(P, -k * x * N.x)])
     with raises_naming("k"):
         derive_equations(Model("bad", parameters=[m], sympy_model=kane))
+
+
+def _bodies_model(**options):
+    """A particle on x and a rod at angle theta, with the frames the options put vectors in."""
+    x, theta = me.dynamicsymbols("x theta")
+    m, g, k = sp.symbols("m g k", positive=True)
+    N, O = me.ReferenceFrame("N"), me.Point("O")
+    B = N.orientnew("B", "Axis", [theta, N.z])
+    Z = me.ReferenceFrame("Z")  # oriented to nothing
+    P = O.locatenew("P", x * N.x)
+    G = P.locatenew("G", B.x)
+    particle = me.Particle("p", P, m)
+    rod = me.RigidBody("rod", G, B, m, (me.inertia(Z if options.get("inertia_in_Z") else B, 1, 1, 1), G))
+    bodies = [particle, rod] + [particle] * bool(options.get("twice"))
+    return Model("bodies", [x, theta], [m, g, k], bodies=bodies, frame=N, origin=O,
+                 loads=[(P, k * Z.x)] if options.get("load_in_Z") else [],
+                 gravity=-g * Z.y if options.get("gravity_in_Z") else None)
+
+
+@pytest.mark.parametrize("option, culprit", [
+    ("load_in_Z", r"load on P \(written in frame Z\) is not oriented relative to the inertial frame N"),
+    ("gravity_in_Z", r"gravity \(written in frame Z\) is not oriented"),
+    ("inertia_in_Z", r"inertia of body 'rod' \(written in frame Z\) is not oriented"),
+    ("twice", "body 'p' is listed twice in bodies"),
+])
+def test_vectors_in_unconnected_frames_and_a_body_twice_are_named(option, culprit):
+    """Found by review: sympy's bare "No connecting orientation path found between N and Z" for a
+    load, gravity or inertia written in a frame with no orientation to N; a body listed twice had
+    its mass counted twice (M[0, 0] = 3 m)."""
+    with pytest.raises(ModelError, match=culprit):
+        _bodies_model(**{option: True})
+
+
+def test_a_notebook_shows_large_equations_as_text():
+    """Found by review: a notebook cell ending with the equations of a 3-link spatial chain waited
+    minutes for their display form (55 s for one entry). Beyond LATEX_NODE_LIMIT nodes in M and F
+    the LaTeX form is declined (None: the notebook shows the text repr); the double pendulum's is
+    given and holds its M."""
+    from lagcodegen import catalog, derive_equations
+
+    small = derive_equations(catalog.example("double_pendulum"))
+    assert small._repr_latex_().startswith("$\\displaystyle")
+    assert derive_equations(catalog.pendulum_chain(12))._repr_latex_() is None

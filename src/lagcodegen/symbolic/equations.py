@@ -37,6 +37,21 @@ def without_baumgarte(expr):
     return expr.xreplace({BAUMGARTE_ALPHA: 0, BAUMGARTE_BETA: 0})
 
 
+#: expression nodes of M and F beyond which a notebook shows the equations as text
+LATEX_NODE_LIMIT = 4000
+
+
+def _nodes_beyond(exprs, limit: int) -> bool:
+    """More than ``limit`` nodes in ``exprs`` (counted until the limit)."""
+    count = 0
+    for expr in exprs:
+        for _ in sp.preorder_traversal(expr):
+            count += 1
+            if count > limit:
+                return True
+    return False
+
+
 @dataclass(frozen=True)
 class EquationsOfMotion:
     """``qd = K(q, u, t)``, ``M(q, t) ud = F(q, u, t)``, in plain symbols.
@@ -131,10 +146,15 @@ class EquationsOfMotion:
 
         return display_equations(self)
 
-    def _repr_latex_(self) -> str:
-        """Notebooks render the equations in display form."""
+    def _repr_latex_(self) -> str | None:
+        """Notebooks render the equations in display form; large ones (more than
+        `LATEX_NODE_LIMIT` expression nodes in M and F) as text, since the display form takes
+        minutes there (found by review: 55 s for one entry of a 3-link spatial chain) and a notebook
+        asks for it whenever a cell ends with the equations."""
         from .display import latex_equations
 
+        if self.mass_matrix is None or _nodes_beyond([*self.mass_matrix, *self.forcing], LATEX_NODE_LIMIT):
+            return None
         return f"$\\displaystyle {latex_equations(self)}$"
 
     @property
