@@ -357,3 +357,15 @@ def test_steady_motion_of_a_driven_model_asks_for_its_inputs():
         steady_motion(eom, given, ["x"], [eom.u[0].name])
     motion = steady_motion(eom, given, ["x"], [eom.u[0].name], inputs={"tau": 0.0})
     assert motion.values["x"] == pytest.approx(10 / 6, rel=1e-12)
+
+
+def test_a_linearization_that_overflows_is_named():
+    """Found by review: with g = 1e308 the double pendulum's A held -inf and was returned (the
+    command line printed it), then the eigenvalues failed with numpy's "Array must not contain infs
+    or NaNs", naming nothing. By hand A[2, 0] = -(m1 + m2) g / (m1 l1) at rest overflows."""
+    from lagcodegen import catalog
+
+    eom = derive_equations(catalog.example("double_pendulum"))
+    with pytest.raises(ValueError, match=r"the linearization of model 'double_pendulum' is not finite: A\[2, 0\] = "
+                                         r"-inf .*g = 1e\+308"):
+        linearize_state(eom, [0.0, 0.0, 0.0, 0.0], values={"g": 1e308})

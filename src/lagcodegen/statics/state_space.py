@@ -193,11 +193,28 @@ def linearize_state(eom: EquationsOfMotion, x0: Any, r0: Any = None, values: Map
     A = np.vstack([here["dK/dx"], np.hstack([np.linalg.solve(M_here, here["dF/dq"] - dM_ud),
                                               np.linalg.solve(M_here, here["dF/du"])])])
     B = np.vstack([here["dK/dr"], np.linalg.solve(M_here, here["dF/dr"])]) if r else np.zeros((eom.n_state, 0))
+    _check_finite(eom, {"A": A, "B": B, "C": here["dh/dx"], "D": here["dh/dr"]}, vals)
     numbers = {p: sp.Float(v) for p, v in vals.items()}
     as_float = lambda v: float(sp.sympify(v).xreplace(numbers))  # noqa: E731
     return StateSpace(states, tuple(r), tuple(map(as_float, point)), tuple(map(as_float, held)),
                       as_float(t0), A, B, here["dh/dx"].reshape(len(names), eom.n_state),
                       here["dh/dr"].reshape(len(names), len(r)), names)
+
+
+def _check_finite(eom: EquationsOfMotion, matrices: dict, values: Mapping) -> None:
+    """A ValueError naming the first matrix with an infinite or NaN entry (found by review: A with
+    inf entries was returned, and numpy's "Array must not contain infs or NaNs" came later, from
+    the eigenvalues, naming nothing)."""
+    for name, matrix in matrices.items():
+        matrix = np.asarray(matrix, dtype=float)
+        bad = np.argwhere(~np.isfinite(matrix))
+        if bad.size:
+            i, j = bad[0]
+            sizes = sorted((abs(float(v)), str(p), float(v)) for p, v in values.items() if float(v) != 0)
+            hint = f" (parameters from {sizes[0][1]} = {sizes[0][2]:g} to {sizes[-1][1]} = {sizes[-1][2]:g})" \
+                if sizes else ""
+            raise ValueError(f"the linearization of model {eom.name!r} is not finite: {name}[{i}, {j}] = "
+                             f"{matrix[i, j]} at these parameter values{hint}")
 
 
 def _constrained(eom, states, point, held, at, vals, number, parts, t0) -> StateSpace:
