@@ -115,16 +115,13 @@ def check_output(out, what: str = "out") -> Path:
         if not FFMpegWriter.isAvailable():
             raise AnimationError(f"{what} {text!r}: writing MP4 needs ffmpeg, which was not found (on PATH, or "
                                  "matplotlib's rcParams['animation.ffmpeg_path']); install ffmpeg or write a .gif")
-    # opened for appending, before any frame is drawn (found by review: an unwritable place failed only
-    # after the whole run was drawn, naming no argument); os.access says yes to root everywhere
-    existed = target.exists()
-    try:
-        with open(target, "ab"):
-            pass
-    except OSError as error:
-        raise AnimationError(f"{what} {text!r}: cannot write there ({error.strerror})") from None
-    if not existed:
-        target.unlink()
+    # before any frame is drawn (found by review: an unwritable place failed only after the whole run
+    # was drawn, naming no argument)
+    from ..run.arguments import unwritable
+
+    reason = unwritable(target)
+    if reason is not None:
+        raise AnimationError(f"{what} {text!r}: cannot write there ({reason})")
     return target
 
 

@@ -131,14 +131,11 @@ def check_output_file(path: str | None, option: str, kind: str = "npz") -> None:
         if suffix not in formats:
             raise UsageError(f"{option} {path}: the figure format {suffix or '(none)'!r} is not one matplotlib "
                              f"writes ({', '.join(sorted(formats))})")
-    existed = target.exists()
-    try:
-        with open(target, "ab"):
-            pass
-    except OSError as error:
-        raise UsageError(f"{option} {path}: cannot write there ({error.strerror})") from None
-    if not existed:
-        target.unlink()
+    from ..run.arguments import unwritable
+
+    reason = unwritable(target)
+    if reason is not None:
+        raise UsageError(f"{option} {path}: cannot write there ({reason})")
 
 
 def derive_equations_of(spec: str):

@@ -232,6 +232,23 @@ class OutputTooLargeError(ValueError):
     """The samples a run would keep do not fit in memory; the message gives the size and a stride."""
 
 
+def unwritable(target) -> str | None:
+    """Why the file ``target`` cannot be written (strerror), or None: opened for appending and
+    removed again if it was new (os.access says yes to root everywhere, /proc included)."""
+    from pathlib import Path
+
+    target = Path(target)
+    existed = target.exists()
+    try:
+        with open(target, "ab"):
+            pass
+    except OSError as error:
+        return error.strerror or str(error)
+    if not existed:
+        target.unlink()
+    return None
+
+
 def missing_constraints(layout, asked) -> str:
     """Why the options ``asked`` (project, residuals, multipliers) do not apply to a model without
     constraints kept with multipliers: it has none, or it eliminated its velocity constraints."""
