@@ -228,7 +228,9 @@ def _table_by_name(layout, inputs: Mapping, t0: float, t_end: float) -> InputTab
             raise InputError(f"input {name!r}: give a constant or a table (times, values), got {value!r}")
         tables.append(table)
     knots = np.unique(np.concatenate([t.times for t in tables if t.times.size > 1] or [np.zeros(1)]))
-    values = np.column_stack([[table.at(t)[0] for t in knots] for table in tables])
+    # np.interp is `InputTable.at` for these strictly increasing tables, over all knots at once (found
+    # by review: a Python loop over 1e6 knots took 9.6 s)
+    values = np.column_stack([np.interp(knots, table.times, table.values[:, 0]) for table in tables])
     return InputTable(times=knots, values=values)
 
 
