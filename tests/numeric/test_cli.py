@@ -499,3 +499,17 @@ def test_flags_prefixes_and_warnings_are_one_line_each(capsys):
     assert code == EXIT_FAILED
     lines = [line for line in err.splitlines() if line]
     assert lines and all(line.startswith("lagcodegen simulate: warning: ") for line in lines), err
+
+
+def test_emit_writes_both_files_or_neither(tmp_path, capsys):
+    """Found by review: with the source's name taken by a directory, emit wrote the new header and
+    failed on the source, leaving a header beside whatever source was there. Now nothing is
+    written; and a write that fails leaves no partial file behind."""
+    out = tmp_path / "out"
+    (out / "lcg_double_pendulum.c").mkdir(parents=True)
+    message = cli_error(["emit", "double_pendulum", "--out", out], capsys)
+    assert "lcg_double_pendulum.c exists and is not a file; nothing was written" in message
+    assert sorted(p.name for p in out.iterdir()) == ["lcg_double_pendulum.c"]
+    (out / "lcg_double_pendulum.c").rmdir()
+    code, _ = run_cli(["emit", "double_pendulum", "--out", out], capsys)
+    assert code == 0 and sorted(p.name for p in out.iterdir()) == ["lcg_double_pendulum.c", "lcg_double_pendulum.h"]

@@ -178,12 +178,26 @@ def cmd_emit(args) -> int:
     outputs, methods, fixed = emit_request(args, eom)
     system = reduce_expressions(eom, outputs, fixed)
     sources = render_sources(system, args.precision, methods=methods, trig=args.trig)
+    # both files written beside their targets first, then moved there: a failure leaves no new header
+    # next to an old source (found by review)
+    for name in (sources.header_name, sources.source_name):
+        if (out / name).exists() and not (out / name).is_file():
+            raise UsageError(f"--out {args.out}: {out / name} exists and is not a file; nothing was written")
+    written = []
     try:
         out.mkdir(parents=True, exist_ok=True)
-        (out / sources.header_name).write_text(sources.header)
-        (out / sources.source_name).write_text(sources.source)
+        for name, text in ((sources.header_name, sources.header), (sources.source_name, sources.source)):
+            partial = out / f".{name}.{os.getpid()}.partial"
+            written.append((partial, out / name))
+            partial.write_text(text)
+        for partial, target in written:
+            os.replace(partial, target)
     except OSError as error:
         raise UsageError(f"--out {args.out}: cannot write {error.filename}: {error.strerror}") from None
+    finally:
+        for partial, _ in written:
+            if partial.exists():
+                partial.unlink()
     if system.formulation:
         print(f"formulation {system.formulation}; C source {len(sources.source)} bytes")
     for kernel in system.kernels:
