@@ -174,6 +174,8 @@ def test_sweep_grid_writes_every_array_and_heatmap(tmp_path, capsys, reference_p
               "blowup_time": (6,), "t": (51,), "trajectories": (6, 51, 4)}
     assert {name: data[name].shape for name in shapes} == shapes
     assert list(data["state_names"]) == ["q1", "q2", "q1_d", "q2_d"]
+    # the base state holds what --x0 gave, not the swept q1's first value (found by review)
+    assert list(data["x0_names"]) == ["q2"] and list(data["x0_values"]) == [0.2]
     member = 4  # m2 = 1, q1 = 0.2 in C order
     _, want = solve_reference(reference_pendulum, [0.2, 0.2, 0.0, 0.0], [0.0, 0.5], params={"m2": 1.0})
     np.testing.assert_allclose(data["x_final"][member], want[-1], rtol=0, atol=1e-8)

@@ -360,6 +360,8 @@ def save_sweep(path, result, system, eom, args, params, x0) -> None:
     if result.grid is not None:
         arrays |= {f"grid_{name}": axis for name, axis in zip(result.columns, result.grid)}
     layout = system.layout
+    # the base state: a swept coordinate's placeholder (its first value) is not part of it (found by review)
+    x0 = {name: value for name, value in x0.items() if name not in result.columns}
     np.savez(path, **arrays, columns=np.array(result.columns), state_names=np.array(result.state_names),
              coordinate_names=np.array(result.coordinate_names), completed=result.completed,
              is_grid=result.grid is not None, model=eom.name, method=args.method, h=args.h,
