@@ -369,3 +369,15 @@ def test_a_linearization_that_overflows_is_named():
     with pytest.raises(ValueError, match=r"the linearization of model 'double_pendulum' is not finite: A\[2, 0\] = "
                                          r"-inf .*g = 1e\+308"):
         linearize_state(eom, [0.0, 0.0, 0.0, 0.0], values={"g": 1e308})
+
+
+def test_a_sign_term_is_smooth_away_from_its_switch():
+    """Found by review: the bar on rollers (rolling friction ~ sign(x')) was refused at x' = 0.5,
+    where sign is locally constant and A exists. By hand its F is gravity plus a constant friction
+    there, so A = [[0, 1], [0, 0]]; at x' = 0 the switch itself is still refused."""
+    from lagcodegen import catalog
+
+    eom = derive_equations(catalog.example("bar_on_rollers"))
+    np.testing.assert_array_equal(np.asarray(linearize_state(eom, [0.0, 0.5], values={}).A, float), [[0, 1], [0, 0]])
+    with pytest.raises(ValueError, match="not differentiable"):
+        linearize_state(eom, [0.0, 0.0], values={})
