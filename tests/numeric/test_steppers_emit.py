@@ -198,3 +198,24 @@ def test_build_parts_define_every_exported_function_once(model, tmp_path, requir
     exported = sorted(defined[0])
     assert f"{sources.layout.prefix}_simulate" in exported and f"{sources.layout.prefix}_step_rk4" in exported
     assert sorted(defined[1] + defined[2]) == exported
+
+
+def test_the_header_documents_the_driven_drivers_arguments(driven_oscillator):
+    """Found by review: for a model with inputs and measurements the header's simulate and sweep
+    prototypes left inputs, context, hold, r_out, y_out, the per-member knot tables and the
+    measurement summaries undocumented (a shared table overran under AddressSanitizer). The words
+    are checked against what the drivers do (templates/steppers.c.j2: each member's own table,
+    hold = 1 the ramp, y_min/y_max written unconditionally)."""
+    from lagcodegen import derive_equations
+
+    model = driven_oscillator("documented", measurements={"spring": lambda x, F, m, k, c: -k * x})
+    header = render_sources(reduce_expressions(derive_equations(model), ("rhs", "measurements")),
+                            methods=["rk4"]).header
+    simulate_doc = header[:header.index("int lcg_documented_simulate(")].rsplit("/*", 1)[1]
+    sweep_doc = header[:header.index("void lcg_documented_sweep(")].rsplit("/*", 1)[1]
+    assert "The 1 inputs come from inputs(context, t, x, r) (not NULL" in simulate_doc
+    assert "with hold = 1 also at the step's end" in simulate_doc and "r_out (or NULL)" in simulate_doc
+    assert "y_out (or NULL) receives the 1 measurements" in simulate_doc
+    assert "its own table of n_knots knots (times input_t + m * n_knots, values input_r + m * n_knots * 1)" \
+        in " ".join(sweep_doc.split())
+    assert "y_final, y_min and y_max + m * 1 (required)" in " ".join(sweep_doc.split())

@@ -155,7 +155,7 @@ def stepper_context(system, names, real: str, methods: list) -> dict:
                         "with multipliers) each, any of the last four")
                      + " NULL to skip (written only where the kernel has them); work: "
                      f"{prefix.upper()}_WORK_SIZE values; returns a status code (*steps_done: the steps "
-                     "completed).", [])
+                     "completed)." + _driven_driver_doc(system, prefix), [])
     context["exported"] += foh
     context |= _step_jacobian_context(system, context, prefix, real, methods)
     if system.inputs:
@@ -190,7 +190,8 @@ def stepper_context(system, names, real: str, methods: list) -> dict:
                     "Many independent members, one after another: member m from x0s + m * "
                     f"{N} with ps + m * {max(1, len(system.free_parameters))}, its results at x_final + m * {N}, "
                     f"q_max + m * {len(system.q)}, energy_error[m], status[m], steps_done[m] and (traj not NULL) "
-                    f"traj + m * (n_steps / stride + 1) * {N}; work: {prefix.upper()}_WORK_SIZE values.", [])
+                    f"traj + m * (n_steps / stride + 1) * {N}; work: {prefix.upper()}_WORK_SIZE values."
+                    + _driven_sweep_doc(system), [])
     context["sweep_decl"] = sweep["decl"]
     context["n_params_or_one"] = max(1, len(system.free_parameters))
     context["can_project"] = "constraints" in system.outputs or "configuration" in system.outputs
@@ -198,6 +199,34 @@ def stepper_context(system, names, real: str, methods: list) -> dict:
     context["records_multipliers"] = "multipliers" in system.outputs
     context["exported"].append(sweep)
     return context
+
+
+def _driven_driver_doc(system, prefix: str) -> str:
+    """The simulate prototype's words on its inputs and measurements (found by review: the header
+    left inputs, context, hold, r_out and y_out undocumented)."""
+    text = ""
+    if system.inputs:
+        text += (f" The {len(system.inputs)} inputs come from inputs(context, t, x, r) (not NULL; "
+                 f"{prefix}_table_inputs with context a {prefix}_input_table interpolates a table), read at each "
+                 "step's start and held over the step (hold = 0), or with hold = 1 also at the step's end, the "
+                 "stages taking them on the line between (first-order hold, for inputs of t only); r_out (or "
+                 f"NULL) receives them at each kept sample, {len(system.inputs)} each.")
+    if system.measurements:
+        text += (f" y_out (or NULL) receives the {len(system.measurements)} measurements at each kept sample.")
+    return text
+
+
+def _driven_sweep_doc(system) -> str:
+    """The sweep prototype's words on its input tables and measurement summaries."""
+    text = ""
+    n_r, n_y = len(system.inputs), len(system.measurements)
+    if n_r:
+        text += (" Member m's inputs interpolate its own table of n_knots knots (times input_t + m * n_knots, "
+                 f"values input_r + m * n_knots * {n_r}), hold as in simulate.")
+    if n_y:
+        text += (f" y_final, y_min and y_max + m * {n_y} (required) receive member m's {n_y} measurements at "
+                 "its end and their least and largest values over its samples (a NaN sample sticks).")
+    return text
 
 
 def _step_jacobian_context(system, context: dict, prefix: str, real: str, methods) -> dict:
