@@ -287,20 +287,26 @@ def test_a_float_kernel_refuses_times_it_cannot_resolve(tmp_path, driven_oscilla
         assert any(issubclass(w.category, FloatTimeWarning) for w in caught) == warned
 
 
-def test_solve_reference_takes_an_array_as_the_step_function_it_is(oscillator):
-    # found by review: the array's repeated knot times made empty segments (a TypeError). The exact
-    # zero-order-hold map x+ = e^(A h) x + A^-1 (e^(A h) - I) B r_k is the reference.
+def zero_order_hold_exact(r, h: float) -> np.ndarray:
+    """The oscillator from rest under r_k held over step k, exactly: the zero-order-hold map
+    x+ = e^(A h) x + A^-1 (e^(A h) - I) B r_k; shape (len(r) + 1, 2)."""
     from scipy.linalg import expm
-    h, n = 0.05, 40
-    r = np.sin(np.arange(n))
     A, B = np.array([[0.0, 1.0], [-K / M, -C / M]]), np.array([0.0, 1.0 / M])
     Phi = expm(A * h)
     Gamma = np.linalg.solve(A, (Phi - np.eye(2)) @ B)
     exact = [np.zeros(2)]
-    for k in range(n):
-        exact.append(Phi @ exact[-1] + Gamma * r[k])
+    for value in r:
+        exact.append(Phi @ exact[-1] + Gamma * value)
+    return np.array(exact)
+
+
+def test_solve_reference_takes_an_array_as_the_step_function_it_is(oscillator):
+    # found by review: the array's repeated knot times made empty segments (a TypeError). The exact
+    # zero-order-hold map is the reference.
+    h, n = 0.05, 40
+    r = np.sin(np.arange(n))
     t, ours = solve_reference(oscillator, {"x": 0.0}, np.arange(n + 1) * h, inputs=r)
-    np.testing.assert_allclose(ours, np.array(exact), rtol=0, atol=1e-11)
+    np.testing.assert_allclose(ours, zero_order_hold_exact(r, h), rtol=0, atol=1e-11)
 
 
 def test_solve_reference_keeps_the_rows_on_the_run_s_steps(oscillator):
@@ -308,21 +314,15 @@ def test_solve_reference_keeps_the_rows_on_the_run_s_steps(oscillator):
     t_eval = run.t[1:] (or strided) moved the rows in time and the reference was 7.5e-3 off, without
     an error. Now such a t_eval needs h=; with it every t_eval gives the exact zero-order-hold map
     x+ = e^(A h) x + A^-1 (e^(A h) - I) B r_k."""
-    from scipy.linalg import expm
     h, n = 0.05, 40
     r = np.where(np.arange(n) * h < 0.5, 0.0, 5.0)
-    A, B = np.array([[0.0, 1.0], [-K / M, -C / M]]), np.array([0.0, 1.0 / M])
-    Phi = expm(A * h)
-    Gamma = np.linalg.solve(A, (Phi - np.eye(2)) @ B)
-    exact = [np.zeros(2)]
-    for k in range(n):
-        exact.append(Phi @ exact[-1] + Gamma * r[k])
+    exact = zero_order_hold_exact(r, h)
     grid = np.arange(n + 1) * h
     with pytest.raises(ValueError, match="an array of inputs per step needs the run's step: pass h="):
         solve_reference(oscillator, {"x": 0.0}, grid[1:], inputs=r)
     for t_eval in (grid[1:], grid[::4], grid[-1:]):
         t, ours = solve_reference(oscillator, {"x": 0.0}, t_eval, inputs=r, h=h)
-        np.testing.assert_allclose(ours, np.array(exact)[np.searchsorted(grid, t_eval)], rtol=0, atol=1e-11)
+        np.testing.assert_allclose(ours, exact[np.searchsorted(grid, t_eval)], rtol=0, atol=1e-11)
 
 
 def test_the_jacobian_gives_df_dr(oscillator):
