@@ -459,17 +459,24 @@ static int lcg_disk_spring_rod_f32_irk_step(int s, const float *a, const float *
              * take onto a singular M (found by review: radau_iia3 reported a singular mass matrix there) */
             if (status != LCG_OK) return iteration == 0 ? status : LCG_NEWTON_FAILED;
         }
-        residual = 0.0F;  /* the stage equations' residual against the rounding of f at the stages */
+        /* the stage equations' residual against the rounding of f at the stages: first the size of
+         * the terms of f_m at stage j, sum_l |J_ml| |X_jl|, in E (assembled only after this) */
+        for (j = 0; j < s; ++j) {
+            for (m = 0; m < 4; ++m) {
+                float terms = 0.0F;
+                for (l = 0; l < 4; ++l) {
+                    terms += fabsf(J[m * 4 + l]) * fabsf(x[l] + W[j * 4 + l]);
+                }
+                E[j * 4 + m] = terms;
+            }
+        }
+        residual = 0.0F;
         for (i = 0; i < s; ++i) {
             for (m = 0; m < 4; ++m) {
                 float acc = 0.0F, level = 0.0F;
                 for (j = 0; j < s; ++j) {
-                    float terms = 0.0F;  /* sum |J_ml| |X_jl|: the size of the terms of f_m */
-                    for (l = 0; l < 4; ++l) {
-                        terms += fabsf(J[m * 4 + l]) * fabsf(x[l] + W[j * 4 + l]);
-                    }
                     acc += a[i * s + j] * K[j * 4 + m];
-                    level += fabsf(a[i * s + j]) * terms;
+                    level += fabsf(a[i * s + j]) * E[j * 4 + m];
                 }
                 r[i * 4 + m] = h * acc - W[i * 4 + m];
                 level = fabsf(h) * level + fabsf(W[i * 4 + m]);

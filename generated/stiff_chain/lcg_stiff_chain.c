@@ -507,17 +507,24 @@ static int lcg_stiff_chain_irk_step(int s, const double *a, const double *b, con
              * take onto a singular M (found by review: radau_iia3 reported a singular mass matrix there) */
             if (status != LCG_OK) return iteration == 0 ? status : LCG_NEWTON_FAILED;
         }
-        residual = 0.0;  /* the stage equations' residual against the rounding of f at the stages */
+        /* the stage equations' residual against the rounding of f at the stages: first the size of
+         * the terms of f_m at stage j, sum_l |J_ml| |X_jl|, in E (assembled only after this) */
+        for (j = 0; j < s; ++j) {
+            for (m = 0; m < 6; ++m) {
+                double terms = 0.0;
+                for (l = 0; l < 6; ++l) {
+                    terms += fabs(J[m * 6 + l]) * fabs(x[l] + W[j * 6 + l]);
+                }
+                E[j * 6 + m] = terms;
+            }
+        }
+        residual = 0.0;
         for (i = 0; i < s; ++i) {
             for (m = 0; m < 6; ++m) {
                 double acc = 0.0, level = 0.0;
                 for (j = 0; j < s; ++j) {
-                    double terms = 0.0;  /* sum |J_ml| |X_jl|: the size of the terms of f_m */
-                    for (l = 0; l < 6; ++l) {
-                        terms += fabs(J[m * 6 + l]) * fabs(x[l] + W[j * 6 + l]);
-                    }
                     acc += a[i * s + j] * K[j * 6 + m];
-                    level += fabs(a[i * s + j]) * terms;
+                    level += fabs(a[i * s + j]) * E[j * 6 + m];
                 }
                 r[i * 6 + m] = h * acc - W[i * 6 + m];
                 level = fabs(h) * level + fabs(W[i * 6 + m]);
