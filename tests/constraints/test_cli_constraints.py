@@ -104,3 +104,11 @@ def test_the_command_line_runs_a_model_with_eliminated_speeds(tmp_path, capsys):
     np.testing.assert_allclose(got, _sleigh_reference(-0.8, 0.5, 2.0, 1.0, 0.5, 0.3, 1.0), atol=1e-9)
     assert main(["sweep", str(model), "--t-end", "0.1", "--h", "1e-3", "--x0", x0, "--grid", "m=0.5:2:3"]) == 0
     assert "status: ok 3" in capsys.readouterr().out
+
+
+def test_a_millimetre_rod_started_at_half_its_length_is_refused(capsys):
+    """Found by review: with an absolute floor (1 + max |x0|) in the check, a rod of l = 1e-3 started
+    at y = -l/2 ran, exit 0. By hand phi = x^2 + y^2 - l^2 = -7.5e-7, 43 % of the size of its terms."""
+    code = main(["simulate", "cartesian_pendulum", "--t-end", "0.01", "--h", "1e-5", "--x0", "x=0,y=-0.0005",
+                 "--param", "l=0.001"])
+    assert code == 2 and "--x0 is off constraint row 0 of cartesian_pendulum on the positions" in capsys.readouterr().err

@@ -191,15 +191,16 @@ def check_consistent_x0(eom, x0: dict, values: dict) -> None:
     import numpy as np
 
     from ..run.drift import DRIFT_TOLERANCE
-    from ..statics.consistent import constraint_residuals
+    from ..statics.consistent import constraint_residuals, constraint_scales
 
     q = {s.name: x0[s.name] for s in eom.q}
     u = {s.name: x0.get(s.name, 0.0) for s in eom.u}
     residual = constraint_residuals(eom, q, u, values=values or None)
+    # relative to each row's terms, no absolute floor (found by review: l = 1e-3 started at y = -l/2 ran)
+    excess = np.abs(residual) - DRIFT_TOLERANCE["double"] * constraint_scales(eom, q, u, values=values or None)
     m = eom.m
-    scale = 1.0 + max(abs(v) for v in x0.values())
-    worst = int(np.argmax(np.abs(residual)))
-    if abs(residual[worst]) > DRIFT_TOLERANCE["double"] * scale:
+    worst = int(np.argmax(excess))
+    if excess[worst] > 0:
         level = "positions, phi" if worst < m else "velocities, A u + dphi/dt"
         raise UsageError(f"--x0 is off constraint row {worst % m} of {eom.name} on the {level} = "
                          f"{residual[worst]:.3g}; give only some coordinates (the others are solved) or a "

@@ -67,8 +67,10 @@ def consistent_state(eom: EquationsOfMotion, q: Any = None, u: Any = None, *,
     fix_u : sequence of speeds or coordinates, optional
         Speeds held at their given values; default: every speed given in ``u``.
     tol : float
-        Accepted residual, relative: ``|phi_i| <= tol * (1 + sum_j |A_ij q_j|)`` and
-        ``|w_i| <= tol * (1 + sum_j |A_ij u_j| + |dphi_i/dt|)``.
+        Accepted residual, relative to the size of the terms it is made of (`constraint_scales`):
+        ``|phi_i| <= tol * (sum_k |term_k of phi_i| + sum_j |A_ij| (|q_j| + max |q|))`` and
+        ``|w_i| <= tol * (sum_j |A_ij| (|u_j| + max |u|) + |dphi_i/dt|)``; no absolute floor, so a
+        model of micrometres is held to its constraints as one of metres.
 
     Returns
     -------
@@ -97,24 +99,57 @@ def constraint_residuals(eom: EquationsOfMotion, q: Any, u: Any, values: Mapping
 
     q, u: sequences (n,) or mappings naming every coordinate (and speed; missing speeds are 0).
     """
-    phi, A, phi_t = _constraint_functions(eom, values, t)
+    phi, A, phi_t, _ = _constraint_functions(eom, values, t)
     qv = np.array(coordinate_point(eom, q), dtype=float)
     uv = _given(eom, u, (), list(eom.u), "speed")[0]
     return np.concatenate([phi(qv), A(qv) @ uv + phi_t(qv)])
 
 
+def residual_sizes(eom: EquationsOfMotion) -> tuple[sp.Matrix, sp.Matrix]:
+    """The size of the terms of phi_i and of A u + dphi/dt, symbolically, m rows each (see
+    `constraint_scales`)."""
+    A = sp.Matrix(eom.constraint_jacobian)
+    absolute = A.applyfunc(sp.Abs)
+    terms = sp.Matrix([sum((sp.Abs(term) for term in sp.Add.make_args(row)), sp.S.Zero) for row in eom.constraints])
+
+    def sizes(symbols):  # |x_j| + max_k |x_k|, as in `_scale`
+        largest = sp.Max(*[sp.Abs(s) for s in symbols])
+        return sp.Matrix([sp.Abs(s) + largest for s in symbols])
+
+    positions = terms + sp.Matrix(eom.constraints).jacobian(list(eom.q)).applyfunc(sp.Abs) * sizes(eom.q)
+    velocities = absolute * sizes(eom.u) + sp.Matrix(eom.constraint_rate).applyfunc(sp.Abs)
+    return positions, velocities
+
+
+def constraint_scales(eom: EquationsOfMotion, q: Any, u: Any, values: Mapping | None = None,
+                      t: float = 0.0) -> np.ndarray:
+    """The size of the terms each row of `constraint_residuals` is made of, shape (2m,): for phi_i,
+    sum_k |term_k| over its terms plus sum_j |A_ij| (|q_j| + max |q|); for A u + dphi/dt,
+    sum_j |A_ij| (|u_j| + max |u|) + |dphi_i/dt|. A residual is at rounding level when it is a
+    small multiple of eps times this. There is no absolute floor (found by review: with 1 + ..., a
+    pendulum of l = 1e-6 passed with its bob at half the rod's length)."""
+    _, A, phi_t, phi_size = _constraint_functions(eom, values, t)
+    qv = np.array(coordinate_point(eom, q), dtype=float)
+    uv = _given(eom, u, (), list(eom.u), "speed")[0]
+    J = A(qv)
+    return np.concatenate([_scale(J, qv, phi_size(qv)), _scale(J, uv, phi_t(qv))])
+
+
 # -- inputs ---------------------------------------------------------------------------------------
 def _constraint_functions(eom: EquationsOfMotion, values: Mapping | None, t: float) -> tuple:
-    """Numeric phi(q) (m,), A(q) (m, n), dphi/dt(q) (m,) at time t with the parameters substituted."""
+    """Numeric phi(q) (m,), A(q) (m, n), dphi/dt(q) (m,) and the size of phi's terms (m,: sum_k
+    |term_k|) at time t with the parameters substituted."""
     vals = resolve_values(eom, {} if values is None else values)
     vals = {**vals, eom.t: float(t)}
     q, m, n = list(eom.q), eom.m, eom.n
     if m == 0:
-        return (lambda x: np.zeros(0),) + (lambda x: np.zeros((0, n)),) + (lambda x: np.zeros(0),)
+        return (lambda x: np.zeros(0),) + (lambda x: np.zeros((0, n)),) + (lambda x: np.zeros(0),) * 2
+    sizes = sp.Matrix([sum((sp.Abs(term) for term in sp.Add.make_args(row)), sp.S.Zero) for row in eom.constraints])
     out = []
     for expr, shape, what in ((eom.constraints, (m,), "constraints"),
                               (eom.constraint_jacobian, (m, n), "constraint Jacobian"),
-                              (eom.constraint_rate, (m,), "constraint rate")):
+                              (eom.constraint_rate, (m,), "constraint rate"),
+                              (sizes, (m,), "constraints")):
         f = sp.lambdify([q], substitute_values(eom, sp.Matrix(expr), vals, what), "numpy")
         out.append(lambda x, f=f, shape=shape: np.asarray(f(x), dtype=float).reshape(shape))
     return tuple(out)
@@ -179,34 +214,34 @@ def _lookup(eom: EquationsOfMotion, index: dict, key: Any, kind: str) -> int:
 
 # -- positions ------------------------------------------------------------------------------------
 def _solve_positions(eom, functions, q0: np.ndarray, held: list, tol: float) -> np.ndarray:
-    phi, A, _ = functions
+    phi, A, _, phi_size = functions
     free = [i for i in range(eom.n) if i not in held]
     best = q0.copy()
-    if free and not _converged(phi(best), A(best), best, tol):
+    if free and not _converged(phi(best), A(best), best, tol, phi_size(best)):
         rng = np.random.default_rng(0)
         for attempt in range(RETRIES + 1):
             start = q0.copy()
             if attempt:  # a start where A_free loses rank (y = 0 on a circle) stalls every solver
                 start[free] += PERTURBATION * (1.0 + np.abs(start[free])) * rng.standard_normal(len(free))
-            x = _gauss_newton(phi, A, start, free, tol)
-            if not _converged(phi(x), A(x), x, tol):
+            x = _gauss_newton(phi, A, phi_size, start, free, tol)
+            if not _converged(phi(x), A(x), x, tol, phi_size(x)):
                 x = _least_squares(phi, A, x, free)
             if _norm(phi(x)) < _norm(phi(best)):
                 best = x
-            if _converged(phi(best), A(best), best, tol):
+            if _converged(phi(best), A(best), best, tol, phi_size(best)):
                 break
     r, J = phi(best), A(best)
-    if not _converged(r, J, best, tol):
-        _raise_violated(eom, r, tol * _scale(J, best), best, held, "coordinate")
+    if not _converged(r, J, best, tol, phi_size(best)):
+        _raise_violated(eom, r, tol * _scale(J, best, phi_size(best)), best, held, "coordinate")
     return best
 
 
-def _gauss_newton(phi, A, x: np.ndarray, free: list, tol: float) -> np.ndarray:
+def _gauss_newton(phi, A, phi_size, x: np.ndarray, free: list, tol: float) -> np.ndarray:
     """Minimum-norm Gauss-Newton steps in the free coordinates, backtracking on |phi|."""
     x = x.copy()
     for _ in range(MAX_ITERATIONS):
         r, J = phi(x), A(x)
-        if _converged(r, J, x, tol):
+        if _converged(r, J, x, tol, phi_size(x)):
             break
         dz = np.linalg.lstsq(J[:, free], -r, rcond=None)[0]
         norm, step = _norm(r), 1.0
@@ -237,18 +272,20 @@ def _norm(r: np.ndarray) -> float:
     return float(np.linalg.norm(r)) if np.all(np.isfinite(r)) else np.inf
 
 
-def _scale(J: np.ndarray, x: np.ndarray, b: Any = 0.0) -> np.ndarray:
-    """Per constraint: 1 + sum_j |J_ij x_j| + |b_i|, the size of the terms making up the residual."""
-    return 1.0 + np.abs(J) @ np.abs(x) + np.abs(b)
+def _scale(J: np.ndarray, x: np.ndarray, b: Any) -> np.ndarray:
+    """Per constraint: sum_j |J_ij| (|x_j| + max_k |x_k|) + |b_i|, the size of the terms making up
+    the residual (b: the size of phi's own terms, or dphi/dt). The max_k term is the row's floor at
+    the state's own scale: y_s = 0 (a slider on its guide) has terms as small as y_s itself."""
+    return np.abs(J) @ (np.abs(x) + np.abs(x).max(initial=0.0)) + np.abs(b)
 
 
-def _converged(r: np.ndarray, J: np.ndarray, x: np.ndarray, tol: float, b: Any = 0.0) -> bool:
+def _converged(r: np.ndarray, J: np.ndarray, x: np.ndarray, tol: float, b: Any) -> bool:
     return bool(np.all(np.isfinite(r)) and np.all(np.abs(r) <= tol * _scale(J, x, b)))
 
 
 # -- speeds ---------------------------------------------------------------------------------------
 def _solve_speeds(eom, functions, q0: np.ndarray, u0: np.ndarray, held: list, tol: float) -> np.ndarray:
-    _, A, phi_t = functions
+    _, A, phi_t, _ = functions
     J, b = A(q0), phi_t(q0)
     free = [i for i in range(eom.n) if i not in held]
     u = u0.copy()

@@ -25,7 +25,8 @@ import sympy as sp
 from sympy.matrices.exceptions import NonInvertibleMatrixError
 
 from ..symbolic.derive import EquationsOfMotion
-from .equilibria import input_point, named_point, require_closed_form, resolve_values, substitute_values
+from .consistent import residual_sizes
+from .equilibria import NOT_ANALYTIC, input_point, named_point, require_closed_form, resolve_values, substitute_values
 
 
 @dataclass(frozen=True)
@@ -234,8 +235,13 @@ def _constrained(eom, states, point, held, at, vals, number, parts, t0) -> State
     c = sp.Matrix.vstack(sp.Matrix(eom.constraints)[:held_rows, :],
                          A * sp.Matrix(eom.u) + sp.Matrix(eom.constraint_rate))
     residual = number(c, "constraints").ravel()
-    if np.abs(residual).max(initial=0.0) > 1e-8 * (1 + np.abs(point_values := number(sp.Matrix(states), "x0")).max()):
-        worst = int(np.argmax(np.abs(residual)))
+    positions, velocities = residual_sizes(eom)
+    # relative to the size of each row's terms, with no absolute floor (found by review: a rod of
+    # l = 1e-6 with its bob at l/2 linearized as a rod half as long)
+    limit = 1e-8 * number(sp.Matrix.vstack(positions[:held_rows, :], velocities), "constraints").ravel()
+    if not np.all(np.abs(residual) <= limit):
+        worst = int(np.argmax(np.abs(residual) - limit))
+        point_values = number(sp.Matrix(states), "x0")
         raise ValueError(f"x0 = {point_values.ravel().tolist()} violates constraint row {worst} of model {eom.name!r} "
                          f"(residual {residual[worst]:.3g}): linearize about a consistent state (consistent_state)")
     K_here = number(K, "constraint matrix [[M, A^T], [A, 0]]")
@@ -285,9 +291,6 @@ def _constrained(eom, states, point, held, at, vals, number, parts, t0) -> State
                       B_reduced=basis.T @ B_full)
 
 
-#: functions that are not analytic where they switch: the complex step would differentiate them wrongly
-_NOT_ANALYTIC = (sp.Abs, sp.sign, sp.Piecewise, sp.Heaviside, sp.Min, sp.Max, sp.floor, sp.ceiling, sp.re, sp.im,
-                 sp.arg, sp.conjugate, sp.DiracDelta)
 #: the complex step: f(x + i h) = f(x) + i h f'(x) + O(h^2), so Im f / h = f'(x) to rounding for any h this small
 COMPLEX_STEP = 1e-30
 
@@ -317,7 +320,7 @@ def _lambdified_terms(eom: EquationsOfMotion, variables: tuple, parameters: tupl
     M, A = sp.Matrix(eom.mass_matrix), sp.Matrix(eom.constraint_jacobian)
     K = sp.Matrix(sp.BlockMatrix([[M, A.T], [A, sp.zeros(eom.m, eom.m)]]))
     rhs = sp.Matrix.vstack(sp.Matrix(eom.forcing), sp.Matrix(eom.constraint_bias))
-    if K.has(*_NOT_ANALYTIC) or rhs.has(*_NOT_ANALYTIC) or K.has(sp.Derivative) or rhs.has(sp.Derivative):
+    if K.has(*NOT_ANALYTIC) or rhs.has(*NOT_ANALYTIC) or K.has(sp.Derivative) or rhs.has(sp.Derivative):
         return None
     return sp.lambdify(list(variables) + [eom.t] + list(parameters), [K, rhs], modules="numpy", cse=True)
 

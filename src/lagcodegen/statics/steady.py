@@ -24,6 +24,23 @@ import sympy as sp
 from ..symbolic.derive import EquationsOfMotion
 from .equilibria import hold_inputs, named_point, require_closed_form, resolve_values, substitute_values
 
+#: the functions that switch, as the complex step must see them: the branch the real part is on,
+#: continued analytically (Martins, Sturdza and Alonso, ACM TOMS 29 (2003) 245, sec. 3: abs by the
+#: sign of the real part). numpy's own abs takes the modulus (no derivative in the imaginary part)
+#: and its sign of a complex z is z/|z|; found by review: a flywheel with drag c phi'|phi'| got half
+#: its eigenvalue. Piecewise, Min, Max and Heaviside print as comparisons, which numpy makes on the
+#: real part first.
+_COMPLEX_STEP_SAFE = {
+    "Abs": lambda z: np.where(np.real(z) < 0, -z, z),
+    "sign": lambda z: np.sign(np.real(z)),
+    "floor": lambda z: np.floor(np.real(z)),
+    "ceiling": lambda z: np.ceil(np.real(z)),
+    "re": lambda z: z,  # of a real argument: the argument itself
+    "im": lambda z: 0 * np.real(z),
+    "conjugate": lambda z: z,
+}
+_MODULES = [_COMPLEX_STEP_SAFE, "numpy"]
+
 
 @dataclass(frozen=True)
 class SteadyMotion:
@@ -153,10 +170,10 @@ def steady_eigenvalues(eom: EquationsOfMotion, motion: SteadyMotion, cyclic: Seq
     dependent = [j for j in range(eom.n_u) if j not in kept_u]
     n_q = eom.n_q
     vals = {**resolve_values(eom, {} if values is None else values), eom.t: float(t)}
-    A = sp.lambdify([list(eom.q)], substitute_values(eom, sp.Matrix(eom.constraint_jacobian), vals, "A"), "numpy")
-    b = sp.lambdify([list(eom.q)], substitute_values(eom, sp.Matrix(eom.constraint_rate), vals, "b"), "numpy")
+    A = sp.lambdify([list(eom.q)], substitute_values(eom, sp.Matrix(eom.constraint_jacobian), vals, "A"), _MODULES)
+    b = sp.lambdify([list(eom.q)], substitute_values(eom, sp.Matrix(eom.constraint_rate), vals, "b"), _MODULES)
     K = sp.lambdify([list(eom.q) + list(eom.u)], substitute_values(eom, sp.Matrix(eom.kinematics), vals, "K"),
-                    "numpy")
+                    _MODULES)
 
     def reduced(s: np.ndarray, base: np.ndarray = motion.state) -> np.ndarray:
         x = base.astype(s.dtype)
@@ -209,11 +226,11 @@ def _functions(eom: EquationsOfMotion, values: Mapping | None, t: float) -> tupl
     m = eom.constraints.rows
     K = sp.Matrix(sp.BlockMatrix([[M, A.T], [A, sp.zeros(m, m)]])) if m else M
     rhs = sp.Matrix.vstack(F, sp.Matrix(eom.constraint_bias)) if m else F
-    K_f = sp.lambdify([states], substitute_values(eom, K, vals, "steady motion: M"), "numpy", cse=True)
-    rhs_f = sp.lambdify([states], substitute_values(eom, rhs, vals, "steady motion: F"), "numpy", cse=True)
+    K_f = sp.lambdify([states], substitute_values(eom, K, vals, "steady motion: M"), _MODULES, cse=True)
+    rhs_f = sp.lambdify([states], substitute_values(eom, rhs, vals, "steady motion: F"), _MODULES, cse=True)
     rows = sp.Matrix.vstack(sp.Matrix(eom.constraints)[:eom.n_holonomic, :],
                             A * sp.Matrix(eom.u) + sp.Matrix(eom.constraint_rate)) if m else sp.zeros(0, 1)
-    rows_f = sp.lambdify([states], substitute_values(eom, rows, vals, "steady motion: constraints"), "numpy")
+    rows_f = sp.lambdify([states], substitute_values(eom, rows, vals, "steady motion: constraints"), _MODULES)
     n = eom.n_u
 
     def accelerations(x: np.ndarray) -> np.ndarray:  # complex x too (the complex step)
