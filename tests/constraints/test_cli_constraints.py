@@ -112,3 +112,18 @@ def test_a_millimetre_rod_started_at_half_its_length_is_refused(capsys):
     code = main(["simulate", "cartesian_pendulum", "--t-end", "0.01", "--h", "1e-5", "--x0", "x=0,y=-0.0005",
                  "--param", "l=0.001"])
     assert code == 2 and "--x0 is off constraint row 0 of cartesian_pendulum on the positions" in capsys.readouterr().err
+
+
+def test_linearize_completes_a_partial_state_as_simulate_does(capsys):
+    """Found by review: `linearize slider_crank --at theta=0.3` was refused ("violates constraint row
+    0 ... (consistent_state)"), though simulate completes the same --x0. The completed state must
+    close the loop (by hand, s = r cos(theta) + sqrt(L^2 - r^2 sin^2(theta)), r = 0.1, L = 0.3)."""
+    code = main(["linearize", "slider_crank", "--at", "theta=0.3"])
+    out = capsys.readouterr().out
+    assert code == 0 and "consistent initial state: theta = 0.3" in out
+    completed = dict(item.split(" = ") for item in out.split("consistent initial state: ")[1].splitlines()[0].split(", "))
+    r, L, theta = 0.1, 0.3, 0.3
+    assert float(completed["s"]) == pytest.approx(r * np.cos(theta) + np.sqrt(L**2 - (r * np.sin(theta))**2), rel=1e-8)
+    assert "eigenvalue, frequency" in out
+    code = main(["linearize", "slider_crank", "--at", "theta=0.3,s=0.1"])
+    assert code == 2 and "--at is inconsistent with the constraints" in capsys.readouterr().err

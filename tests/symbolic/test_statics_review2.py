@@ -101,3 +101,61 @@ def test_linearize_state_refuses_a_micrometre_rod_at_half_its_length():
         linearize_state(eom, [0.0, -0.5e-6, 0.0, 0.0], values={"l": 1e-6})
     hanging = linearize_state(eom, [0.0, -1e-6, 0.0, 0.0], values={"l": 1e-6})
     np.testing.assert_allclose(sorted(np.abs(hanging.eigenvalues().imag))[-1], np.sqrt(9.81 / 1e-6), rtol=1e-8)
+
+
+def test_a_stiff_chain_keeps_its_soft_modes():
+    """Was: w^2 = [0, 0, 2e11] and stable False for catalog.stiff_chain with k = 1, K = 1e11 (w^2 below
+    1e-10 of the largest zeroed). Expected: scipy's eigh of the stiffness matrix written by hand from
+    V (unit masses, walls, springs k, K between m2 and m3): all positive, about 0.634, 2.366, 2e11."""
+    import scipy.linalg
+
+    from lagcodegen import catalog
+    from lagcodegen.statics.equilibria import linearize
+
+    k, K = 1.0, 1e11
+    lin = linearize(derive_equations(catalog.stiff_chain()), [0, 0, 0], {"k": k, "K": K})
+    by_hand = scipy.linalg.eigh(np.array([[2 * k, -k, 0], [-k, k + K, -K], [0, -K, K + k]]), eigvals_only=True)
+    np.testing.assert_allclose(lin.eigenvalues()[:2], by_hand[:2], rtol=1e-3)  # eigh: n eps |K| ~ 1e-4 absolute
+    assert lin.stable
+
+
+@pytest.mark.parametrize("centre, a, m", [(0.0, 2e-7, 1e-9), (1e4, 0.004, 1.0)], ids=["micro", "far from 0"])
+def test_close_equilibria_stay_distinct(centre, a, m):
+    """Was: one equilibrium of a double well whose three are 2e-7 apart (roots merged within an absolute
+    1e-6, and within 1e-6 relative at 1e4). By hand: V = k ((x - c)^2 - a^2)^2 / (4 a^2) has
+    F = -k (x - c) ((x - c)^2 - a^2) / a^2, zero at x = c - a, c, c + a."""
+    from lagcodegen.statics.equilibria import find_equilibria
+
+    x = me.dynamicsymbols("x")
+    ms, k, half_width, c = sp.symbols("m k a c", positive=True)
+    eom = derive_equations(Model("double_well", [x], [ms, k, half_width, c], kinetic_energy=ms * x.diff() ** 2 / 2,
+                                 potential_energy=k * ((x - c) ** 2 - half_width ** 2) ** 2 / (4 * half_width ** 2),
+                                 parameter_values={"m": m, "k": 1.0, "a": a, "c": centre}))
+    guesses = (centre + np.linspace(-2.5 * a, 2.5 * a, 11)).reshape(-1, 1)
+    found = sorted(p[eom.q[0]] for p in find_equilibria(eom, values={}, guesses=guesses))
+    np.testing.assert_allclose(found, [centre - a, centre, centre + a], rtol=1e-12, atol=1e-12 * a)
+
+
+def test_a_slow_spin_up_is_no_steady_spin():
+    """Was: a free flywheel with tau / J = 5e-11 rad/s^2 returned as spinning steadily at 100 rad/s
+    (an absolute tolerance of 1e-10). By hand J phi'' = tau has no steady spin for tau != 0, at any
+    scale; with tau = 0 every spin is steady."""
+    phi = me.dynamicsymbols("phi")
+    J, torque = sp.symbols("J tau", positive=True)
+    model = Model("free_flywheel", [phi], [J, torque], kinetic_energy=J * phi.diff() ** 2 / 2,
+                  generalized_forces={phi: torque}, parameter_values={"J": 2.0, "tau": 1e-10})
+    eom = derive_equations(model)
+    with pytest.raises(ValueError, match="no solution"):
+        steady_motion(eom, {"phi_d": 100.0}, ["phi"], ["phi_d"])
+    assert steady_motion(eom, {"phi_d": 100.0}, ["phi"], ["phi_d"], values={"tau": 0.0}).values["phi_d"] == 100.0
+
+
+@pytest.mark.parametrize("value", [float("inf"), float("nan"), "a lot"])
+def test_a_held_coordinate_needs_a_finite_number(value):
+    """Was: sympy's AccumulationBounds printer error for inf, 'residual nan' for NaN; neither named fix=."""
+    from lagcodegen import catalog
+    from lagcodegen.statics.constrained import constrained_equilibrium
+
+    eom = derive_equations(catalog.slider_crank())
+    with pytest.raises(ValueError, match="fix: coordinate theta needs a"):
+        constrained_equilibrium(eom, list(catalog.slider_crank_state(0.4)[:5]), fix={"theta": value})

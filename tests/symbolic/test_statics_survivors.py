@@ -235,10 +235,16 @@ def test_frequencies_below_one_and_neutral_modes_stay_real():
     assert _linear(np.diag([-4.0, 1.0])).natural_frequencies().tolist() == [2j, 1.0]
 
 
-def test_tiny_eigenvalues_are_zeroed_relative_to_the_largest():
-    # "tiny ones (relative 1e-10) are 0": 1e-8 next to 1e4 is round-off, 1e-12 next to 1e-8 is
-    # a soft mode in small units
-    assert _linear(np.diag([1e4, 1e-8])).eigenvalues().tolist() == [0.0, 1e4]
+def test_round_off_zero_modes_are_zeroed_and_soft_modes_kept():
+    """A free-free pair of masses (m1 = 1, m2 = 1e-3, k = 1e6) has a rigid mode, w^2 = 0 exactly (by
+    hand: K (1, 1) = 0), which eigh returns as round-off; it must read 0. Exact small eigenvalues are
+    data: diag(1e4, 1e-8) has w^2 = 1e-8 (was zeroed as 'relative 1e-10'), and a stiff chain's soft
+    modes stay (see test_statics_review2)."""
+    k = 1e6
+    free = _linear(k * np.array([[1.0, -1.0], [-1.0, 1.0]]), np.diag([1.0, 1e-3])).eigenvalues()
+    assert free[0] == 0.0
+    assert free[1] == pytest.approx(k * (1.0 + 1e3), rel=1e-12)  # by hand: k (1/m1 + 1/m2)
+    np.testing.assert_allclose(_linear(np.diag([1e4, 1e-8])).eigenvalues(), [1e-8, 1e4], rtol=1e-12)
     np.testing.assert_allclose(_linear(np.diag([1e-8, 1e-12])).eigenvalues(), [1e-12, 1e-8], rtol=1e-12)
 
 

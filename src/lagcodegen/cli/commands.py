@@ -111,11 +111,13 @@ def cmd_derive(args) -> int:
 
 def cmd_linearize(args) -> int:
     """Print A = df/dx and B = df/dr of xd = f(x, r) about a state (any state: states not named
-    in --at are 0) with the eigenvalues, their frequencies and damping ratios."""
+    in --at are 0; of a model with constraints, solved from them, as simulate's --x0) with the
+    eigenvalues, their frequencies and damping ratios."""
     import numpy as np
 
     from ..statics.state_space import linearize_state
     from ..symbolic.derive import derive_equations
+    from .runs import consistent_x0
 
     eom = derive_equations(load_model(args.model))
     at = parse_assignments(args.at, "--at")
@@ -130,6 +132,8 @@ def cmd_linearize(args) -> int:
         raise UsageError(f"--inputs: {unknown[0]!r} is not an input of {eom.name}; "
                          f"inputs: {', '.join(names) or 'none'}")
     values = parse_assignments(args.params, "--params")
+    if eom.m:  # found by review: the state simulate completes was refused, pointing at a Python function
+        at = consistent_x0(eom, at, values, "linearize", "--at")
     linear = linearize_state(eom, [at.get(name, 0.0) for name in states],
                              [given.get(name, 0.0) for name in names] if names else None, values=values)
     print(f"{eom.name}: x = ({', '.join(states)}), r = ({', '.join(names)}), about x0 = {list(linear.x0)}"

@@ -144,9 +144,9 @@ def derive_equations_of(spec: str):
     return derive_equations(load_model(spec))
 
 
-def consistent_x0(eom, x0: dict, values: dict, command: str) -> dict:
-    """Complete a partial --x0 of a constrained model: the missing coordinates and speeds solve
-    the constraints (consistent.consistent_state), the given ones are held."""
+def consistent_x0(eom, x0: dict, values: dict, command: str, option: str = "--x0") -> dict:
+    """Complete a partial --x0 (or ``option``) of a constrained model: the missing coordinates and
+    speeds solve the constraints (consistent.consistent_state), the given ones are held."""
     from ..statics.consistent import consistent_state
 
     q_given = {q.name: x0[q.name] for q in eom.q if q.name in x0}
@@ -154,7 +154,7 @@ def consistent_x0(eom, x0: dict, values: dict, command: str) -> dict:
     try:
         q, u = consistent_state(eom, q_given, u_given, values=values or None)
     except ValueError as error:
-        raise UsageError(f"--x0 is inconsistent with the constraints: {error}") from None
+        raise UsageError(f"{option} is inconsistent with the constraints: {error}") from None
     state = dict(zip([s.name for s in eom.q], map(float, q))) | dict(zip([s.name for s in eom.u], map(float, u)))
     print("consistent initial state: " + ", ".join(f"{k} = {v:.9g}" for k, v in state.items()))
     return state

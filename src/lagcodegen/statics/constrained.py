@@ -130,7 +130,13 @@ def _held(eom: EquationsOfMotion, fix: Any, q0: np.ndarray) -> dict:
         if i is None:
             raise ValueError(f"fix: {key!r} is not a coordinate of model {eom.name!r} "
                              f"(coordinates: {', '.join(by_name)})")
-        held[i] = float(fix[key]) if isinstance(fix, Mapping) else float(q0[i])
+        value = fix[key] if isinstance(fix, Mapping) else q0[i]
+        try:
+            held[i] = float(value)
+        except (TypeError, ValueError):
+            raise ValueError(f"fix: coordinate {eom.q[i]} needs a number, got {value!r}") from None
+        if not np.isfinite(held[i]):  # found by review: sympy's AccumulationBounds error, or residual nan
+            raise ValueError(f"fix: coordinate {eom.q[i]} needs a finite value, got {value!r}")
     return dict(sorted(held.items()))
 
 

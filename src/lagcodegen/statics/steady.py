@@ -22,6 +22,7 @@ import numpy as np
 import sympy as sp
 
 from ..symbolic.derive import EquationsOfMotion
+from .consistent import residual_sizes
 from .equilibria import hold_inputs, named_point, require_closed_form, resolve_values, substitute_values
 
 #: the functions that switch, as the complex step must see them: the branch the real part is on,
@@ -74,6 +75,10 @@ def steady_motion(eom: EquationsOfMotion, given: Mapping, unknowns: Sequence[str
         Parameter values (default: the model's).
     inputs : sequence or mapping, optional
         The inputs held constant (`hold_inputs`); required when the model has inputs.
+    tol : float
+        Accepted residual of each equation, relative to the size of its terms (a constraint row's
+        as `consistent.constraint_scales`; an acceleration's, |K^-1| times the sum of |terms| of F
+        and gamma).
 
     Raises ValueError naming the culprit: an unknown state name, a count of unknowns that does not
     match the equations, or no convergence (with the residual reached).
@@ -113,7 +118,7 @@ def steady_motion(eom: EquationsOfMotion, given: Mapping, unknowns: Sequence[str
     if len(unknowns) != rows:
         raise ValueError(f"steady motion: {len(unknowns)} unknowns ({', '.join(unknowns)}) for {rows} equations "
                          f"({constraint_rows} constraint rows and {len(steady)} steady speeds)")
-    accelerations, constraints = _functions(eom, values, t)
+    accelerations, constraints, sizes = _functions(eom, values, t)
     solved = [index[name] for name in unknowns]
     wanted = [speeds[name] for name in steady]
 
@@ -125,10 +130,17 @@ def steady_motion(eom: EquationsOfMotion, given: Mapping, unknowns: Sequence[str
     result = root(equations, x0[solved], method="hybr", options={"xtol": 1e-14})
     x = x0.copy()
     x[solved] = result.x
-    residual = float(np.max(np.abs(equations(result.x)), initial=0.0))
-    if not np.isfinite(residual) or residual > tol:
+    residuals = equations(result.x)
+    residual = float(np.max(np.abs(residuals), initial=0.0))
+    constraint_sizes, acceleration_sizes = sizes(x)
+    # relative to the size of each equation's terms (found by review: an absolute 1e-10 took a free
+    # flywheel spun up at 5e-11 rad/s^2 for a steady spin)
+    limit = tol * np.concatenate([constraint_sizes, acceleration_sizes[wanted]])
+    if not np.all(np.abs(residuals) <= limit):
+        relative = np.max(np.abs(residuals) / limit) * tol
         raise ValueError(f"steady motion of model {eom.name!r}: no solution from the given guesses (largest "
-                         f"residual {residual:.3g} after {result.nfev} evaluations: {result.message})")
+                         f"residual {residual:.3g}, relative to its terms {relative:.3g}, "
+                         f"after {result.nfev} evaluations: {result.message})")
     return SteadyMotion(names, x, residual, accelerations(x))
 
 
@@ -165,7 +177,7 @@ def steady_eigenvalues(eom: EquationsOfMotion, motion: SteadyMotion, cyclic: Seq
     if twice:  # found by review: numpy's "Last 2 dimensions of the array must be square"
         raise ValueError(f"steady eigenvalues: {', '.join(map(repr, twice))} named more than once")
     kept_q = [i for i, name in enumerate(q_names) if name not in cyclic]
-    accelerations, _ = _functions(eom, values, t)
+    accelerations = _functions(eom, values, t)[0]
     kept_u = [u_names.index(name) for name in speeds]
     dependent = [j for j in range(eom.n_u) if j not in kept_u]
     n_q = eom.n_q
@@ -217,8 +229,10 @@ def steady_eigenvalues(eom: EquationsOfMotion, motion: SteadyMotion, cyclic: Seq
 
 
 def _functions(eom: EquationsOfMotion, values: Mapping | None, t: float) -> tuple:
-    """Numeric ud(x) of every speed (the Lagrange I solve when constrained) and the constraint rows
-    phi (holonomic) then A u + b (velocity), at time t with the parameters substituted."""
+    """Numeric ud(x) of every speed (the Lagrange I solve when constrained), the constraint rows
+    phi (holonomic) then A u + b (velocity), and the size of their terms (the constraint rows' and
+    the accelerations': |K^-1| times the sum of |terms| of each row of (F, gamma)), at time t with
+    the parameters substituted."""
     vals = {**resolve_values(eom, {} if values is None else values), eom.t: float(t)}
     states = list(eom.q) + list(eom.u)
     M, F = sp.Matrix(eom.mass_matrix), sp.Matrix(eom.forcing)
@@ -232,6 +246,15 @@ def _functions(eom: EquationsOfMotion, values: Mapping | None, t: float) -> tupl
                             A * sp.Matrix(eom.u) + sp.Matrix(eom.constraint_rate)) if m else sp.zeros(0, 1)
     rows_f = sp.lambdify([states], substitute_values(eom, rows, vals, "steady motion: constraints"), _MODULES)
     n = eom.n_u
+    terms = sp.Matrix([sum((sp.Abs(term) for term in sp.Add.make_args(row)), sp.S.Zero) for row in rhs])
+    terms_f = sp.lambdify([states], substitute_values(eom, terms, vals, "steady motion: F"), "numpy")
+    if m:
+        positions, velocities = residual_sizes(eom)
+        row_sizes = sp.Matrix.vstack(positions[:eom.n_holonomic, :], velocities)
+    else:
+        row_sizes = sp.zeros(0, 1)
+    row_sizes_f = sp.lambdify([states], substitute_values(eom, row_sizes, vals, "steady motion: constraints"),
+                              "numpy")
 
     def accelerations(x: np.ndarray) -> np.ndarray:  # complex x too (the complex step)
         return np.linalg.solve(np.asarray(K_f(x), dtype=x.dtype), np.asarray(rhs_f(x), dtype=x.dtype).ravel())[:n]
@@ -239,4 +262,9 @@ def _functions(eom: EquationsOfMotion, values: Mapping | None, t: float) -> tupl
     def constraints(x: np.ndarray) -> np.ndarray:
         return np.asarray(rows_f(x), dtype=float).ravel()
 
-    return accelerations, constraints
+    def sizes(x: np.ndarray) -> tuple:
+        inverse = np.abs(np.linalg.inv(np.asarray(K_f(x), dtype=float)))
+        return (np.asarray(row_sizes_f(x), dtype=float).ravel(),
+                (inverse @ np.asarray(terms_f(x), dtype=float).ravel())[:n])
+
+    return accelerations, constraints, sizes
