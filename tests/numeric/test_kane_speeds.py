@@ -323,7 +323,15 @@ def disc_with_contact_forces():
     return kane, parameters
 
 
-@pytest.mark.parametrize("formulation", ["elimination", "multipliers"])
+def test_a_kane_model_with_configuration_constraints_is_refused_with_multipliers(disc_with_contact_forces):
+    """Found by review: with multipliers only A u + b = 0 is held, and a Kane four-bar started 2 units
+    off its loop closure ran with status OK; its configuration constraints need the elimination."""
+    kane, parameters = disc_with_contact_forces
+    with pytest.raises(ModelError, match=r"configuration constraints of the KanesMethod \(q_dependent: q3\(t\)\)"):
+        derive_equations(Model("disc_multipliers", parameters=parameters, sympy_model=kane, formulation="multipliers"))
+
+
+@pytest.mark.parametrize("formulation", ["elimination"])
 def test_contact_forces_from_auxiliary_speeds_equal_sympys(disc_with_contact_forces, formulation):
     """Reference: sympy's auxiliary_eqs at sympy's own accelerations (mass_matrix_full \\ forcing_full
     at the same state), solved for Fx, Fy, Fz."""

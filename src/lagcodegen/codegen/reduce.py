@@ -66,7 +66,8 @@ class ReducedSystem:
 
     ``kinematics_identity`` is True when qd = u (every Lagrange route), so the C copies u.
     ``accelerations`` are the symbols a_j standing for ud_j in the jacobian kernel.
-    ``n_constraints`` is m, the number of constraints with multipliers (0 when they are eliminated).
+    ``n_constraints`` is m, the number of constraints with multipliers (0 when they are eliminated),
+    ``n_holonomic`` how many of them, first, are holonomic.
     ``u`` are the speeds in the state; ``u_dependent`` those eliminated by the velocity constraints
     (computed from them in C at every evaluation; M and F are over ``u + u_dependent``).
     ``inputs`` are the symbols of the inputs r (``r[i]`` in C), in the model's order;
@@ -92,6 +93,7 @@ class ReducedSystem:
     kinematics_identity: bool
     ops_saved_by_fixing: int
     n_constraints: int = 0
+    n_holonomic: int = 0
     inputs: tuple = ()
     measurements: tuple = ()
     u_dependent: tuple = ()
@@ -161,7 +163,8 @@ def reduce_expressions(eom: EquationsOfMotion, outputs=DEFAULT_OUTPUTS,
         fixed_parameters=fixed_values, parameter_values=dict(eom.parameter_values),
         point_names=tuple(name for name, _ in eom.points),
         outputs=tuple(outputs), kernels=tuple(kernels), kinematics_identity=kinematics_identity,
-        ops_saved_by_fixing=int(saved), n_constraints=0 if eom.n_dependent else eom.m, inputs=tuple(eom.inputs),
+        ops_saved_by_fixing=int(saved), n_constraints=0 if eom.n_dependent else eom.m,
+        n_holonomic=0 if eom.n_dependent else eom.n_holonomic, inputs=tuple(eom.inputs),
         measurements=tuple(name for name, _ in eom.measurements) if "measurements" in outputs else (),
         formulation=eom.formulation, recursive=eom.tree is not None,
         angle_coordinates=tuple(eom.tree.angles) if eom.tree is not None else ())

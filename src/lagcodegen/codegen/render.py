@@ -55,6 +55,9 @@ class KernelLayout:
         Inputs in ``r[]`` order (empty: the functions take no ``r``).
     measurements : tuple of str
         Output expressions in ``y[]`` order.
+    n_constraints, n_holonomic : int
+        Constraints with multipliers (rows of ``<prefix>_residuals``), and how many of them, first,
+        are holonomic (phi(q, t) = 0; the others are on the velocities alone).
     dependent_speeds : tuple of str
         Speeds eliminated by the velocity constraints (``<prefix>_dependent_speeds``), not in x.
     reactions : tuple of str
@@ -76,6 +79,7 @@ class KernelLayout:
     methods: tuple = ()
     defaults: tuple = ()
     n_constraints: int = 0
+    n_holonomic: int = 0
     inputs: tuple = ()
     measurements: tuple = ()
     dependent_speeds: tuple = ()
@@ -257,6 +261,7 @@ def _layout(system: ReducedSystem, names: Names, real: str, model_name: str, fun
         parameters=tuple(s.name for s in system.free_parameters),
         fixed=tuple((s.name, v) for s, v in system.fixed_parameters),
         points=system.point_names, functions=exported, methods=methods, n_constraints=system.n_constraints,
+        n_holonomic=system.n_holonomic,
         inputs=tuple(s.name for s in system.inputs), measurements=tuple(system.measurements),
         dependent_speeds=tuple(s.name for s in system.u_dependent), reactions=tuple(s.name for s in system.reactions),
         formulation=system.formulation,

@@ -30,7 +30,13 @@ from .arguments import (  # noqa: F401
     step_count,
     stride_within,
 )
-from .drift import DRIFT_TOLERANCE, ConstraintDriftWarning, resolve_drift_tolerance, warn_if_drifted  # noqa: F401
+from .drift import (  # noqa: F401
+    DRIFT_TOLERANCE,
+    ConstraintDriftWarning,
+    resolve_drift_tolerance,
+    warn_if_configuration_drifted,
+    warn_if_drifted,
+)
 from .inputs import CallableInputs, InputTable, hold_code, is_sampled, resolve_inputs
 
 
@@ -342,7 +348,17 @@ def simulate(system: CompiledSystem, x0, t_end: float, h: float, method: str = "
         warn_if_unstable(system, x, p, h, method, t0, n_steps, r=r0)
     trajectory = _run(system, x, p, t0, h, n_steps, stride, method, outputs, track, signal, ramp)
     if tolerance is not None:
-        warn_if_drifted(trajectory, tolerance, system.layout.n_constraints)
+        warn_if_drifted(trajectory, tolerance, system.layout.n_constraints, system.layout.n_holonomic)
+    if not outputs["project"]:
+        project = getattr(system.lib, f"{system.layout.prefix}_project", None)
+
+        def project_at(t: float, state: np.ndarray) -> int:
+            buffer = np.array(state, dtype=real_dtype(system))
+            code = project(t, c_pointer(system, buffer), c_pointer(system, p))
+            state[:] = buffer
+            return code
+
+        warn_if_configuration_drifted(system.layout, trajectory, project_at, drift_tolerance)
     if not outputs["residuals"] and trajectory.residuals is not None:  # kept for the drift check only
         trajectory = replace(trajectory, residuals=None)
     return trajectory

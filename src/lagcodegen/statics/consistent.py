@@ -85,6 +85,8 @@ def consistent_state(eom: EquationsOfMotion, q: Any = None, u: Any = None, *,
     """
     functions = _constraint_functions(eom, values, t)
     q0, held = _given(eom, q, fix, list(eom.q), "coordinate")
+    if len(eom.configuration):  # found by review: a Kane four-bar 2 units off its loop closure was returned
+        q0 = _solve_configuration(eom, values, t, q0, held, tol)
     if eom.m:
         q0 = _solve_positions(eom, functions, q0, held, tol)
     u0, held_u = _given(eom, u, fix_u, list(eom.u), "speed")
@@ -234,6 +236,42 @@ def _solve_positions(eom, functions, q0: np.ndarray, held: list, tol: float) -> 
     if not _converged(r, J, best, tol, phi_size(best)):
         _raise_violated(eom, r, tol * _scale(J, best, phi_size(best)), best, held, "coordinate")
     return best
+
+
+def _solve_configuration(eom, values, t: float, q0: np.ndarray, held: list, tol: float) -> np.ndarray:
+    """Kane's configuration constraints f(q, t) = 0 solved for the dependent coordinates not held
+    (as the C projection of an eliminated build does), the others as given."""
+    vals = {**resolve_values(eom, {} if values is None else values), eom.t: float(t)}
+    q = list(eom.q)
+    rows = sp.Matrix(eom.configuration)
+    jacobian = rows.jacobian(q)
+    terms = sp.Matrix([sum((sp.Abs(term) for term in sp.Add.make_args(row)), sp.S.Zero) for row in rows])
+    f, J, size = (sp.lambdify([q], substitute_values(eom, matrix, vals, "configuration constraints"), "numpy")
+                  for matrix in (rows, jacobian, terms))
+    k = rows.rows
+    residual = lambda x: np.asarray(f(x), dtype=float).reshape(k)  # noqa: E731
+    slope = lambda x: np.asarray(J(x), dtype=float).reshape(k, len(q))  # noqa: E731
+    sizes = lambda x: np.asarray(size(x), dtype=float).reshape(k)  # noqa: E731
+    free = [d for d in eom.dependent_coordinates if d not in held]
+    x = q0.copy()
+    if free and not _converged(residual(x), slope(x), x, tol, sizes(x)):
+        def embed(z):
+            y = q0.copy()
+            y[free] = z
+            return y
+        solution = scipy.optimize.least_squares(lambda z: residual(embed(z)), q0[free],
+                                                jac=lambda z: slope(embed(z))[:, free], method="lm",
+                                                xtol=1e-15, ftol=1e-15, gtol=1e-15)
+        x = embed(solution.x)
+    r = residual(x)
+    if not _converged(r, slope(x), x, tol, sizes(x)):
+        bad = [i for i in range(k) if not abs(r[i]) <= tol * _scale(slope(x), x, sizes(x))[i]]
+        names = ", ".join(str(q[d]) for d in free) or "none"
+        raise ValueError(f"cannot satisfy the configuration constraints of model {eom.name!r} by the dependent "
+                         f"coordinates not given ({names}): " + "; ".join(
+                             f"configuration constraint {i}: {rows[i]} = 0 has residual {r[i]:.6g}" for i in bad)
+                         + " (" + ", ".join(f"{s} = {v:.12g}" for s, v in zip(q, x)) + ")")
+    return x
 
 
 def _gauss_newton(phi, A, phi_size, x: np.ndarray, free: list, tol: float) -> np.ndarray:
