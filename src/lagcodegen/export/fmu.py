@@ -15,6 +15,7 @@ import math
 import numbers
 import os
 import platform
+import re
 import secrets
 import shlex
 import subprocess
@@ -59,6 +60,23 @@ ZIP_TIME = (1980, 1, 1, 0, 0, 0)
 
 class FmuError(ValueError):
     """An FMU cannot be made from these arguments; the message names the culprit."""
+
+
+#: characters XML 1.0 does not allow (ElementTree writes them through, and every importer's parser
+#: then fails naming only a line and column: found by review)
+_NOT_XML = re.compile("[\x00-\x08\x0b\x0c\x0e-\x1f\ud800-\udfff\ufffe\uffff]")
+
+
+def _check_xml_text(model_name: str, table) -> None:
+    """An FmuError naming the model or variable whose name or description XML cannot hold."""
+    texts = [("the model name", model_name)]
+    texts += [(f"the name of FMI variable {v.name!r}", v.name) for v in table.variables]
+    texts += [(f"the description of FMI variable {v.name!r}", v.description) for v in table.variables]
+    for what, text in texts:
+        found = _NOT_XML.search(text or "")
+        if found:
+            raise FmuError(f"{what} holds the character {found.group()!r} (U+{ord(found.group()):04X}), which "
+                           "modelDescription.xml cannot hold: rename it")
 
 
 def export_fmu(model, path, *, method: str = "rk4", step: float = 1e-3, x0=None, params: Mapping | None = None,
@@ -120,6 +138,7 @@ def export_fmu(model, path, *, method: str = "rk4", step: float = 1e-3, x0=None,
     layout = sources.layout
     table = fmi_variables(layout, _state_start(layout, x0), _parameter_start(layout, params), step, method=method,
                           has_energy=f"{layout.prefix}_energy" in layout.functions, fmi_version=fmi_version)
+    _check_xml_text(layout.model, table)
     guid = _guid(sources, table, method)
     wrapper_name = f"{layout.prefix}_fmi{fmi_version[0]}.c"
     wrapper = _wrapper_source(sources, table, guid, method, step, wrapper_name, fmi_version)
