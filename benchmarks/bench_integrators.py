@@ -431,10 +431,19 @@ def format_report(data, rows, methods, timeout, quick) -> str:
         _method_table(rows, methods)
 
 
-def goals(rows) -> list:
+def goals(rows, statuses: dict | None = None) -> list:
+    """PASS/FAIL per contender; UNDECIDED when its worker (or ours) did not finish: a level it did
+    not reach then says nothing (found by review: PASS against a JiTCODE that failed to import)."""
+    statuses = statuses or {}
     found = []
     for key, name in CONTENDERS.items():
         goal = f"ours faster than {name} at every level 1e-3..1e-10"
+        broken = {worker: statuses[worker] for worker in ("ours", key.split(":")[0])
+                  if statuses.get(worker, "ok") != "ok"}
+        if broken:
+            found.append({"goal": goal, "status": "UNDECIDED",
+                          "detail": "worker did not finish: " + ", ".join(f"{w}: {s}" for w, s in broken.items())})
+            continue
         failing, detail = [], []
         for r in rows:
             ours, other = r["ours_seconds"], r[key]
@@ -468,7 +477,7 @@ def run(options) -> dict:
     statuses = {k: data[k]["status"] for k in ("ours", "hand", "jitcode", "pydy")}
     raw = [{"curve": key, "points": points} for part in ("ours", "hand", "jitcode", "pydy")
            for key, points in data[part]["methods_points"].items()]
-    found = goals(rows)
+    found = goals(rows, statuses)
     for g in found:
         if any(s != "ok" for s in statuses.values()):
             g["detail"] += f" (worker status: {statuses})"

@@ -70,7 +70,11 @@ def worker_measure(quick: str, repeat: str) -> None:
             result = sweep(system, members=members, x0=[0] * 10, t_end=sweep_steps * 1e-3, h=1e-3, threads=1,
                            project=True, track_energy=False, progress=False)
             best = min(best, time.process_time() - begin)
-        emit(sweep_rate=64 * sweep_steps / best, statuses=sorted({int(s) for s in result.status}))
+        # found by review: the rate counted every member's steps whatever their statuses; a member that
+        # stops early did less work, so a sweep with failures has no rate
+        failed = int(np.count_nonzero((result.status != 0) | (result.steps_done != sweep_steps)))
+        emit(sweep_rate=None if failed else 64 * sweep_steps / best, failed=failed,
+             statuses=sorted({int(s) for s in result.status}))
     progress("rolling: done")
 
 
@@ -81,6 +85,9 @@ def run(options) -> dict:
              f"cold compile_model: {data.get('compile_s', float('nan')):.2f} s",
              format_table(["simulate", "ns/step"], [[k, f"{v:.1f}"] for k, v in ns.items()])]
     rate = data.get("sweep_rate")
+    if data.get("failed"):
+        lines.append(f"sweep over 64 spin rates: {data['failed']} members failed (statuses {data.get('statuses')}): "
+                     "no rate")
     if rate:
         lines.append(f"sweep over 64 spin rates, threads = 1, projection on: {rate / 1e6:.2f} M member-steps per "
                      f"CPU-second (statuses {data.get('statuses')})")

@@ -451,7 +451,10 @@ def _measure(args: list, timeout: float, env: dict) -> dict:
 
 def _row(result: dict, tag, tool: str, threads, energy) -> dict:
     row = {"model": label(tag), "tag": str(tag), "tool": tool, "threads": threads, "energy": energy, **result}
-    if result.get("status") == "ok":
+    if result.get("status") == "ok" and result.get("failed"):
+        # found by review: 256 members stopped at step 0 counted as 256 x n_steps (2214 M member-steps/CPU-s)
+        row["status"] = f"{result['failed']} of {result['members']} members failed: no rate"
+    elif result.get("status") == "ok":
         # scipy: equivalent member-steps, members * integrated time (n_steps * h) / h
         done = row["members"] * row["n_steps"]
         row["member_steps"] = done
@@ -535,7 +538,8 @@ def _main_table(rows) -> str:
 
 
 def _speedups(rows) -> list:
-    """[(model tag, tool, energy, wall speed-up, CPU/wall of the 2-thread run, per-CPU-s efficiency)]."""
+    """[(model tag, tool, energy, wall speed-up, CPU/wall of the 2-thread run, per-CPU-s efficiency,
+    CPU/wall of the 1-thread run)]."""
     found = []
     for r2 in rows:
         if r2["threads"] != 2 or "rate_wall" not in r2:
@@ -543,14 +547,14 @@ def _speedups(rows) -> list:
         r1 = _find(rows, r2["tag"], r2["tool"], 1, r2["energy"])
         if r1 is not None and "rate_wall" in r1:
             found.append((r2["tag"], r2["tool"], r2["energy"], r2["rate_wall"] / r1["rate_wall"], r2["util"],
-                          _ratio(r2["rate_cpu"], r1["rate_cpu"])))
+                          _ratio(r2["rate_cpu"], r1["rate_cpu"]), r1["util"]))
     return found
 
 
 def _speedup_lines(rows) -> str:
     lines = ["2 threads vs 1: speed-up = wall rate ratio; cores = CPU/wall of the 2-thread run (2.0 = two "
              "full cores); efficiency = per-CPU-s rate ratio (1.0 = threading costs nothing per member-step)"]
-    for tag, tool, energy, speedup, cores, efficiency in _speedups(rows):
+    for tag, tool, energy, speedup, cores, efficiency, _ in _speedups(rows):
         energy_text = f", energy {energy}" if energy != "-" else ""
         lines.append(f"    {label(parse_tag(tag))}, {TOOLS[tool]}{energy_text}: {speedup:.2f}x, cores {cores:.2f}, "
                      f"efficiency {fmt(efficiency, '.2f')}")
@@ -694,28 +698,49 @@ def _per_core_goal(rows) -> dict:
     return {"goal": goal, "status": "PASS" if rate >= PER_CORE_GOAL else "FAIL", "detail": detail}
 
 
+#: CPU/wall the 1-thread run must have had for a speed-up against it to count (a starved baseline
+#: inflates the ratio)
+BASELINE_CORE = 0.9
+
+
 def _speedup_goal(rows) -> dict:
     goal = f"lagcodegen sweep >= {SPEEDUP_GOAL:g}x on 2 threads vs 1 (energy off)"
     found = [s for s in _speedups(rows) if s[1] == "lcg" and s[2] == "off"]
     if len(found) < len(TAGS):
         return {"goal": goal, "status": "FAIL", "detail": "a 1- or 2-thread run failed"}
     statuses, parts = [], []
-    for tag, _, _, speedup, cores, efficiency in found:
-        hopeless = efficiency is not None and 2 * efficiency < SPEEDUP_GOAL  # even with two free cores
-        status = "PASS" if speedup >= SPEEDUP_GOAL else \
-            "FAIL" if cores >= SPEEDUP_GOAL or hopeless else "UNDECIDED"
+    for tag, _, _, speedup, cores, efficiency, baseline in found:
+        if baseline < BASELINE_CORE:  # found by review: a starved 1-thread run made 2.66x from 0.99 cores
+            status = "UNDECIDED"
+        else:
+            hopeless = efficiency is not None and 2 * efficiency < SPEEDUP_GOAL  # even with two free cores
+            status = "PASS" if speedup >= SPEEDUP_GOAL else \
+                "FAIL" if cores >= SPEEDUP_GOAL or hopeless else "UNDECIDED"
         statuses.append(status)
-        parts.append(f"{label(parse_tag(tag))} {speedup:.2f}x with {cores:.2f} cores available "
-                     f"(per-CPU-s efficiency {fmt(efficiency, '.2f')}){'' if status != 'UNDECIDED' else ': undecided'}")
+        parts.append(f"{label(parse_tag(tag))} {speedup:.2f}x with {cores:.2f} cores available, the 1-thread run "
+                     f"{baseline:.2f} (per-CPU-s efficiency {fmt(efficiency, '.2f')})"
+                     f"{'' if status != 'UNDECIDED' else ': undecided'}")
     status = "FAIL" if "FAIL" in statuses else "UNDECIDED" if "UNDECIDED" in statuses else "PASS"
     note = "" if status != "UNDECIDED" else \
-        f"; the machine gave the 2-thread run fewer than the {SPEEDUP_GOAL:g} cores the goal needs"
+        (f"; the machine gave the 2-thread run fewer than the {SPEEDUP_GOAL:g} cores the goal needs, or the "
+         f"1-thread run less than {BASELINE_CORE:g} of one")
     return {"goal": goal, "status": status, "detail": "; ".join(parts) + note}
 
 
-def _mujoco_goal(rows, tag) -> dict:
+#: largest difference of MuJoCo's trajectory from ours that still counts as the same equations
+#: (recorded: 1.3e-11 double pendulum, 7.2e-11 chain n=10, rounding over CHECK_STEPS steps)
+SAME_EQUATIONS = 1e-9
+
+
+def _mujoco_goal(rows, tag, checks) -> dict:
     need = MUJOCO_GOALS[tag]
     goal = f"lagcodegen sweep >= {need:g}x MuJoCo rollout, {label(tag)} (1 thread, energy off, per CPU-s)"
+    check = checks.get(str(tag), {})
+    if check.get("status") != "ok" or not check.get("ours_ok") or not check.get("mujoco_diff", math.inf) <= SAME_EQUATIONS:
+        # found by review: PASS at 92x when MuJoCo's chain fell under 0.9 g (its trajectory 0.8 off ours)
+        return {"goal": goal, "status": "UNDECIDED",
+                "detail": f"no check that both integrate the same equations (check {check.get('status')}, "
+                          f"MuJoCo vs ours {check.get('mujoco_diff', math.nan):.1e} > {SAME_EQUATIONS:g})"}
     ours, theirs = _find(rows, tag, "lcg", 1, "off"), _find(rows, tag, "mujoco", 1)
     ratio = _ratio(_rate(ours), _rate(theirs))
     if ratio is None:
@@ -728,8 +753,8 @@ def _mujoco_goal(rows, tag) -> dict:
     return {"goal": goal, "status": "PASS" if ratio >= need else "FAIL", "detail": detail}
 
 
-def goals(rows) -> list:
-    return [_per_core_goal(rows), _speedup_goal(rows)] + [_mujoco_goal(rows, tag) for tag in TAGS]
+def goals(rows, checks) -> list:
+    return [_per_core_goal(rows), _speedup_goal(rows)] + [_mujoco_goal(rows, tag, checks) for tag in TAGS]
 
 
 # -- suite protocol ------------------------------------------------------------------------------
@@ -747,7 +772,7 @@ def run(options) -> dict:
     extra = [{"check": tag, **c} for tag, c in checks.items()]
     vector_row = {"vectorization": {k: v for k, v in vector.items() if k != "reports"},
                   "vector_groups": _vector_groups(vector.get("reports", []))}
-    return {"table": table, "rows": rows + extra + [vector_row], "goals": goals(rows)}
+    return {"table": table, "rows": rows + extra + [vector_row], "goals": goals(rows, checks)}
 
 
 def _worker(kind: str, args: list) -> None:

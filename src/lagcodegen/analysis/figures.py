@@ -49,7 +49,7 @@ def _style(method: str, index: int) -> dict:
 
 def plot_work_precision(records: Sequence[WorkRecord], title: str, *, max_error: float = 1e2,
                         error_label: str = "error of x(t_end), max-norm") -> Figure:
-    """Work-precision diagram: error against CPU time, log-log, one line per method.
+    """Work-precision diagram: error against wall time, log-log, one line per method.
 
     Parameters
     ----------
@@ -80,7 +80,7 @@ def plot_work_precision(records: Sequence[WorkRecord], title: str, *, max_error:
             ax.plot([r.seconds for r in rows], [max(r.error, 1e-300) for r in rows], label=method, **style)
     ax.set_xscale("log")
     ax.set_yscale("log")
-    ax.set_xlabel("CPU time per run [s] (best of repeats)")
+    ax.set_xlabel("wall time per run [s] (best of repeats)")
     ax.set_ylabel(error_label)
     ax.set_title(title)
     ax.grid(True, which="major", alpha=0.3)

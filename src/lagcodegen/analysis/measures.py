@@ -105,7 +105,8 @@ class WorkRecord:
     error : float
         Max-norm of x(t_end) - reference over the 2n state entries; inf when the run failed.
     seconds : float
-        CPU time, best of the repeats (`time.perf_counter` around the whole call).
+        Wall time, best of the repeats (`time.perf_counter` around the whole call; found by review:
+        this was called CPU time).
     ok : bool
         The run completed (status OK / scipy success).
     """
@@ -140,7 +141,7 @@ def _best_time(call, repeats: int, min_seconds: float = 0.02):
 
 def work_precision(system: CompiledSystem, x0, t_end: float, methods: Sequence[str], steps: Sequence[int], *,
                    params: Mapping | None = None, reference=None, repeats: int = 3) -> list[WorkRecord]:
-    """Final error and CPU time of fixed-step runs, one record per (method, step count).
+    """Final error and wall time of fixed-step runs, one record per (method, step count).
 
     Parameters
     ----------
