@@ -46,7 +46,7 @@ def pendulum(compiled_example):
     ({"h": 1e-320}, ValueError, r"step h = 9.99989e-321 is inf steps"),
     ({"t_end": math.inf}, ValueError, r"^t_end must be finite"),
     ({"t0": "0"}, TypeError, r"^t0 must be a real number"),
-    ({"stride": 10 ** 30}, ValueError, r"stride = 10{30} exceeds the number of steps \(10\)"),
+    ({"stride": 10 ** 30, "trajectories": True}, ValueError, r"stride = 10{30} exceeds the number of steps \(10\)"),
     ({"stride": -1}, ValueError, r"^stride must be a positive integer"),
     ({"method": 4}, TypeError, r"^method must be a method name"),
     # x0 and params, by name

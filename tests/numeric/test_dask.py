@@ -221,3 +221,13 @@ def test_a_worker_with_another_version_is_named(pendulum, distributed):
         client.run(other_version)
         with pytest.raises(RuntimeError, match=r"has another lagcodegen \(0.0.1-other\) than this process"):
             sweep(pendulum, GRID, client=client, chunk_size=3, **RUN)
+
+
+def test_a_cluster_without_workers_is_named(pendulum, distributed, monkeypatch):
+    """Found by review: with no worker, the version check passed on an empty answer and the sweep waited
+    for ever. No worker may join: after WORKER_WAIT (here 1 s) the sweep says so, having run nothing."""
+    monkeypatch.setattr(sweep_module, "WORKER_WAIT", 1.0)
+    with distributed.LocalCluster(n_workers=0, processes=False, dashboard_address=None) as cluster, \
+            distributed.Client(cluster) as client:
+        with pytest.raises(RuntimeError, match="has no worker"):
+            sweep(pendulum, GRID, client=client, **RUN)

@@ -151,6 +151,12 @@ def grid_axes(result: SweepResult, x: str | None = None, y: str | None = None) -
         else:
             y = next((c for c in result.columns if c != x), None)
         if result.grid is not None and (y, x) == result.columns:
+            for name, axis in zip((y, x), result.grid):
+                repeated = np.unique(np.asarray(axis, dtype=float), return_counts=True)
+                if np.any(repeated[1] > 1):  # found by review: one of the two cells had zero height
+                    raise ValueError(f"grid axis {name!r} repeats {float(repeated[0][repeated[1] > 1][0])!r}: a "
+                                     "heatmap has one cell per value, so each member of that value could not be "
+                                     "shown; sweep distinct values")
             shape = tuple(len(axis) for axis in result.grid)
             return (y, x), tuple(np.asarray(a, dtype=float) for a in result.grid), \
                 np.unravel_index(np.arange(result.n_members), shape)

@@ -291,9 +291,10 @@ A name is a free parameter (not one given with --fixed) or a state variable (q1,
 fields (--field, for the summary and the heatmap):
   q_max:<coordinate>   max |q| over the run      x_final:<state>   final value
   energy_error         max |E - E0| over the run blowup_time       time a failed member stopped
-  steps_done           steps completed           status            0 ok, 1 singular mass matrix,
-                                                                   2 non-finite state, 3 Newton failed,
-                                                                   5 singular constraints
+  steps_done           steps completed           status            the member's status code (below)
+
+status codes of members:
+{status_codes}
 
 examples:
   lagcodegen sweep elastic_pendulum --grid phi=0.05:1:20 --grid k=15:60:46 --x0 r=1.3 --t-end 60 \\
@@ -308,9 +309,25 @@ examples:
 The .npz holds every SweepResult array (values (n_members, n_columns), x_final, q_max, status,
 steps_done, blowup_time, energy_error, and t, trajectories with --trajectories), grid_<name> axes
 for a grid, columns, state_names, coordinate_names, completed, and the run's settings.
-Exit code 0, 1 when the build failed, 2 for a bad command line (one line on stderr naming the culprit),
+Exit code 0 when every member ran (members that stopped early say so in their status), 1 when the
+build or a chunk of members failed, 2 for a bad command line (one line on stderr naming the culprit),
 130 when interrupted (Ctrl-C; the finished members are still written).
 """
+
+
+def _status_codes() -> str:
+    """The members' status codes, from the status table (found by review: a hand-written list stopped
+    at 5, without the inputs', the arguments' and the sweep's own codes)."""
+    import textwrap
+
+    from ..status import STATUS_TABLE, SWEEP_STATUS_TABLE
+
+    text = ", ".join(f"{row.code} {row.name.lower().replace('_', ' ')}" for row in STATUS_TABLE + SWEEP_STATUS_TABLE
+                     if row.name != "UNKNOWN_METHOD")
+    return textwrap.fill(text, 100, initial_indent="  ", subsequent_indent="  ")
+
+
+SWEEP_EPILOG = SWEEP_EPILOG.format(status_codes=_status_codes())
 
 
 def add_run_arguments(parser, default_h: float | None = None) -> None:

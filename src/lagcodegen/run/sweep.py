@@ -215,9 +215,15 @@ def sweep(system: CompiledSystem, grid: Mapping | None = None, *, members: Mappi
     n_steps = step_count(t0, t_end, h)
     t0, h = float(t0), float(h)
     check_time_resolution(layout, t0, t0 + n_steps * h, h)
-    stride = stride_within(stride, n_steps)
     trajectories, track_energy, project = (flag(v, name) for name, v in (
         ("trajectories", trajectories), ("track_energy", track_energy), ("project", project)))
+    # stride spaces the kept trajectories alone (found by review: without them a stride of 1000 for 98
+    # steps was refused, and one that did not divide the steps warned of samples never kept)
+    if trajectories:
+        stride = stride_within(stride, n_steps)
+    else:
+        positive_int(stride, "stride")  # checked, though without trajectories it spaces nothing
+        stride = max(1, n_steps)
     threads, chunk_size = _optional_positive(threads, "threads"), _optional_positive(chunk_size, "chunk_size")
     _check_runner(progress, client, kernel)
     if project and not layout.n_constraints and f"{layout.prefix}_project" not in layout.functions:
@@ -236,7 +242,8 @@ def sweep(system: CompiledSystem, grid: Mapping | None = None, *, members: Mappi
     checked, member_parameters = system, ps
     ramp = hold_code(hold)
     check_hold(method, ramp)
-    tables = member_input_tables(system, columns, values, inputs, member_inputs, t0, h, n_steps, stride, hold)
+    tables = member_input_tables(system, columns, values, inputs, member_inputs, t0, h, n_steps, stride, hold,
+                                 max_output_bytes)
     held = tables is not None and tables[0].shape[1] == 1  # every member's inputs constant in time
     system = _kernel_system(system, method, project, kernel, tables is None or held)
     lanes = _lanes(system, method, project, kernel, tables is None or held)
@@ -487,6 +494,10 @@ def _run_dask(job, xs, ps, out, chunks, client, progress) -> tuple[bool, list]:
             bar.close()
 
 
+#: seconds a sweep waits for the first worker of a Dask cluster that has none
+WORKER_WAIT = 30.0
+
+
 def _check_workers(client) -> None:
     """Every worker of ``client`` imports this lagcodegen. A worker that cannot unpickle a chunk
     (lagcodegen missing from its environment) dies on it, its nanny restarts it, and the sweep
@@ -496,6 +507,11 @@ def _check_workers(client) -> None:
 
     from .. import __version__
 
+    try:  # found by review: with no worker, client.run answered {} and the sweep waited for ever
+        client.wait_for_workers(1, timeout=WORKER_WAIT)
+    except TimeoutError:
+        raise RuntimeError(f"the dask cluster of {client!r} has no worker (none joined within {WORKER_WAIT:g} s): "
+                           "start workers, or sweep without client=; nothing was run") from None
     for target, what in (("lagcodegen.run.sweep:__name__", "cannot import lagcodegen.run.sweep"),
                          ("lagcodegen:__version__", "has another lagcodegen")):
         answers = client.run(resolve_name, target, on_error="return")

@@ -191,15 +191,22 @@ def _member_text(columns, row) -> str:
 
 
 def member_input_tables(system: CompiledSystem, columns, values, inputs, member_inputs, t0: float, h: float,
-                        n_steps: int, stride: int, hold: str = "zoh"):
+                        n_steps: int, stride: int, hold: str = "zoh", limit: int | None = None):
     """Per-member input tables (times (n_members, k), values (n_members, k, n_r)) for a driven model.
 
     A swept input (a column named like it) scales that input's base signal from ``inputs``
     (constant 1 where ``inputs`` gives none): its amplitude. ``member_inputs`` instead gives each
     member its own inputs, as `simulate` takes them (no callables); shorter tables are padded
-    with their last knot, which reads the same.
+    with their last knot, which reads the same. ``limit``: as ``max_output_bytes``, the tables
+    counted against it before they are made (found by review: 400 members of a 20001-knot table
+    took 262 MiB under max_output_bytes = 1e6).
     """
+    from .arguments import check_memory
     from .inputs import InputError, InputTable, resolve_inputs
+
+    def check_tables(knots: int) -> None:  # times and values, and the kernel's copy of both
+        check_memory(2 * 8 * n_members * knots * (1 + n_r), f"the input tables of the sweep's {n_members} members "
+                     f"({knots} knots each) would need", "sweep fewer members or give coarser input tables", limit)
 
     layout = system.layout
     n_members, n_r = len(values), len(layout.inputs)
@@ -214,7 +221,7 @@ def member_input_tables(system: CompiledSystem, columns, values, inputs, member_
         if isinstance(member_inputs, (str, bytes, Mapping)) or len(member_inputs) != n_members:
             raise InputError(f"member_inputs must give one input spec per member ({n_members}), got "
                              f"{type(member_inputs).__name__}")
-        tables = []
+        tables, knots = [], 1
         for m, spec in enumerate(member_inputs):
             if callable(spec) and not isinstance(spec, np.ndarray):
                 raise InputError(f"member_inputs[{m}] is a callable: sweeps take constants, arrays or tables")
@@ -222,6 +229,9 @@ def member_input_tables(system: CompiledSystem, columns, values, inputs, member_
                 tables.append(resolve_inputs(layout, spec, t0, h, n_steps, stride, hold))
             except InputError as error:
                 raise InputError(f"member_inputs[{m}]: {error}") from None
+            if tables[-1].times.size > knots:
+                knots = tables[-1].times.size
+                check_tables(knots)
     else:
         swept_names = {columns[j] for j in swept}
         if inputs is None and set(layout.inputs) - swept_names:
@@ -235,6 +245,7 @@ def member_input_tables(system: CompiledSystem, columns, values, inputs, member_
             inputs = {**{name: 1.0 for name in sorted(swept_names - named)}, **inputs}
         base = InputTable(np.zeros(1), np.ones((1, n_r))) if inputs is None else \
             resolve_inputs(layout, inputs, t0, h, n_steps, stride, hold)
+        check_tables(base.times.size)
         scale = np.ones((n_members, n_r))
         for j in swept:
             scale[:, layout.inputs.index(columns[j])] = values[:, j]
@@ -246,8 +257,23 @@ def member_input_tables(system: CompiledSystem, columns, values, inputs, member_
             member, _, column = bad[0]
             raise InputError(f"member {member}: input {layout.inputs[column]!r} scaled by the swept "
                              f"{layout.inputs[column]!r} = {float(scale[member, column])!r} is not finite")
-        return times, scaled
+        return times, _within_precision(layout, scaled)
     k = max(t.times.size for t in tables)
     times = np.array([np.pad(t.times, (0, k - t.times.size), mode="edge") for t in tables])
     table_values = np.array([np.pad(t.values, ((0, k - t.times.size), (0, 0)), mode="edge") for t in tables])
-    return times, table_values
+    return times, _within_precision(layout, table_values)
+
+
+def _within_precision(layout, values: np.ndarray) -> np.ndarray:
+    """``values`` (n_members, k, n_r), or an InputError naming the first member and input beyond the
+    float range of a float kernel (found by review: the lane kernel then called it a diverged state,
+    the scalar one a non-finite input; a swept parameter that size was refused up front)."""
+    from .inputs import InputError
+
+    if layout.precision == "float":
+        beyond = np.argwhere(np.abs(values) > np.finfo(np.float32).max)
+        if beyond.size:
+            member, knot, column = beyond[0]
+            raise InputError(f"member {member}: input {layout.inputs[column]!r} = "
+                             f"{float(values[member, knot, column])!r} is beyond the range of the float kernel")
+    return values
