@@ -32,8 +32,8 @@ STATUS_TABLE = (
     StatusCode("NONFINITE_STATE", 2, "the state or its derivatives became NaN or infinite (the run diverged)"),
     StatusCode("NEWTON_FAILED", 3, "the implicit step's Newton iteration did not converge"),
     StatusCode("UNKNOWN_METHOD", 4, "the method is not compiled into this kernel"),
-    StatusCode("SINGULAR_CONSTRAINTS", 5, "the constraint Jacobian lost rank (a singular configuration, or a "
-                                          "step crossed one)"),
+    StatusCode("SINGULAR_CONSTRAINTS", 5, "the constraint Jacobian lost rank (redundant constraints, a "
+                                          "singular configuration, or a step crossed one)"),
     StatusCode("NONFINITE_INPUT", 6, "an input value is NaN or infinite"),
     StatusCode("INPUT_FAILED", 7, "the input function failed (a callable raised or returned the wrong shape, "
                                   "or an empty input table)"),

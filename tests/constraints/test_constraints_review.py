@@ -130,3 +130,54 @@ def test_a_run_off_a_velocity_constraint_is_warned_of():
         warnings.simplefilter("error", ConstraintDriftWarning)
         run = simulate(system, x0, t_end=100.0, h=1e-2)
     assert slip(run) < 1e-6
+
+
+def test_a_reaction_along_a_dependent_speed_is_named_as_one():
+    """Was: 'forcing contains Fl(t) ... list it in Model(..., inputs=[...])' for the blade force of a Kane
+    sleigh that Kane's auxiliary speed exposes, which is no input."""
+    t = me.dynamicsymbols._t
+    x, y, th = me.dynamicsymbols("x y theta")
+    u1, u2, u3, ua = me.dynamicsymbols("u1 u2 u3 ua")
+    Fl = me.dynamicsymbols("Fl")
+    m, inertia, a = sp.symbols("m I a", positive=True)
+    N = me.ReferenceFrame("N")
+    B = N.orientnew("B", "Axis", [th, N.z])
+    B.set_ang_vel(N, u3 * N.z)
+    O = me.Point("O")
+    O.set_vel(N, 0)
+    P = O.locatenew("P", x * N.x + y * N.y)
+    P.set_vel(N, u1 * B.x + u2 * B.y + ua * B.y)
+    G = P.locatenew("G", a * B.x)
+    G.v2pt_theory(P, N, B)
+    body = me.RigidBody("b", G, B, m, (me.inertia(B, 0, 0, inertia), G))
+    kd = [x.diff(t) - (u1 * sp.cos(th) - u2 * sp.sin(th)), y.diff(t) - (u1 * sp.sin(th) + u2 * sp.cos(th)),
+          th.diff(t) - u3]
+    kane = me.KanesMethod(N, q_ind=[x, y, th], u_ind=[u1, u3], u_dependent=[u2], kd_eqs=kd,
+                          velocity_constraints=[u2], u_auxiliary=[ua])
+    kane.kanes_equations([body], [(P, Fl * B.y)])
+    with pytest.raises(ModelError, match=r"contains Fl\(t\), a force the auxiliary speeds expose"):
+        derive_equations(Model("sleigh_blade_force", parameters=[m, inertia, a], sympy_model=kane))
+
+
+def test_an_acceleration_in_nonhol_coneqs_is_named_as_one():
+    t = me.dynamicsymbols._t
+    x, y = me.dynamicsymbols("x y")
+    m = sp.symbols("m", positive=True)
+    method = me.LagrangesMethod(m * (x.diff(t) ** 2 + y.diff(t) ** 2) / 2, [x, y], nonhol_coneqs=[x.diff(t, 2) - y])
+    with pytest.raises(ModelError, match=r"contains the acceleration Derivative\(x, \(t, 2\)\)"):
+        derive_equations(Model("acceleration_constraint", parameters=[m], sympy_model=method))
+
+
+def test_symplectic_euler_names_velocity_constraints_as_such():
+    from lagcodegen.codegen.reduce import KernelError
+
+    t = me.dynamicsymbols._t
+    x, y, theta = me.dynamicsymbols("x y theta")
+    m, inertia, a = sp.symbols("m I a", positive=True)
+    xc, yc = x + a * sp.cos(theta), y + a * sp.sin(theta)
+    model = Model("sleigh", [x, y, theta], [m, inertia, a],
+                  kinetic_energy=m * (xc.diff(t) ** 2 + yc.diff(t) ** 2) / 2 + inertia * theta.diff(t) ** 2 / 2,
+                  motion_constraints=[-x.diff(t) * sp.sin(theta) + y.diff(t) * sp.cos(theta)],
+                  parameter_values={"m": 2.0, "I": 0.3, "a": 0.4})
+    with pytest.raises((KernelError, ValueError), match="it has velocity constraints"):
+        compile_model(model, methods=("symplectic_euler",))

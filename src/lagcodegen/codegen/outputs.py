@@ -176,8 +176,10 @@ def momentum_obstacle(eom: EquationsOfMotion) -> str | None:
     """
     from ..symbolic.quadratic_forms import NotQuadratic, quadratic_terms
 
-    if eom.m:
+    if eom.n_holonomic:
         return "it has holonomic constraints (its multipliers are not in the momentum form)"
+    if eom.m:  # found by review: a sleigh was said to have holonomic constraints
+        return "it has velocity constraints (its multipliers or dependent speeds are not in the momentum form)"
     if eom.tree is not None:
         return "its recursive formulation forms no mass matrix"
     if list(eom.kinematics) != list(eom.u):

@@ -235,9 +235,11 @@ def input_symbols(inputs) -> tuple:
     return tuple(r if isinstance(r, sp.Symbol) else sp.Symbol(input_name(r)) for r in inputs)
 
 
-def make_substitution(coordinates, speeds, q, u, what: str, parameters=None, inputs=()) -> Callable:
+def make_substitution(coordinates, speeds, q, u, what: str, parameters=None, inputs=(), reactions=()) -> Callable:
     """Return ``to_plain(expr)``: dynamicsymbols -> plain symbols, raising on leftovers and, when
-    ``parameters`` is given, on free symbols that are not parameters, t, q, u or inputs."""
+    ``parameters`` is given, on free symbols that are not parameters, t, q, u or inputs.
+    ``reactions``: the unknown forces of Kane's auxiliary equations, named as such when they are
+    left over."""
     table = dict(zip(speeds, u))  # Derivative(q(t), t) for the Lagrange routes, u(t) for Kane's
     table.update(zip(coordinates, q))
     r = input_symbols(inputs)
@@ -254,6 +256,19 @@ def make_substitution(coordinates, speeds, q, u, what: str, parameters=None, inp
             if rates:
                 raise ModelError(f"{where} contains the input rate {rates[0]}: inputs may enter the forcing, "
                                  "their rates may not")
+            # found by review: both were told to list themselves as inputs
+            higher = sorted(str(a) for a in left if isinstance(a, sp.Derivative)
+                            and a.expr in set(coordinates) | set(speeds) | set(q) | set(u))
+            if higher:
+                raise ModelError(f"{where} contains the acceleration {higher[0]}: only coordinates, speeds and "
+                                 "time may appear here (a constraint on the accelerations is not supported)")
+            exposed = sorted(str(a) for a in left if a in set(reactions))
+            if exposed:
+                raise ModelError(f"{where} contains {exposed[0]}, a force the auxiliary speeds expose, in the "
+                                 "equations of the model's own speeds: lagcodegen forms them for every speed, the "
+                                 "dependent ones too, so a reaction must do work on auxiliary speeds only (here it "
+                                 "also does work on a speed of the model); give it a direction no speed of the "
+                                 "model moves its point in, or drop it from the loads")
             raise ModelError(f"{where} contains {', '.join(sorted(map(str, left)))}, which is not a "
                              f"coordinate or a speed of this model; a specified function of time that "
                              f"drives the model is an input: list it in Model(..., inputs=[...])")

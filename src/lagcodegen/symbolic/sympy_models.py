@@ -63,7 +63,11 @@ def derive_from_sympy(model: Model):
                                               ("configuration constraint",
                                                list(configuration) if configuration is not None else [])])
     q, u = plain_symbols(coords, speeds, model.parameters)
-    renamed = make_substitution(coords, speeds, q, u, "sympy model", inputs=model.inputs)
+    exposed = ()
+    if auxiliary:  # the unknown forces of the auxiliary equations, named if they reach the equations of motion
+        known = set(coords) | set(speeds) | set(auxiliary) | {s.diff(TIME) for s in tuple(speeds) + auxiliary}
+        exposed = tuple(me.find_dynamicsymbols(sp.Matrix(method.auxiliary_eqs)) - known - set(model.inputs))
+    renamed = make_substitution(coords, speeds, q, u, "sympy model", inputs=model.inputs, reactions=exposed)
     zero = {a: 0 for a in auxiliary} | {a.diff(TIME): 0 for a in auxiliary}
 
     rates = {} if isinstance(method, me.LagrangesMethod) else {c.diff(TIME): k for c, k in zip(coords, kin_dynamic)}
