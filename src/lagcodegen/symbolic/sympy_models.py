@@ -285,10 +285,13 @@ def _energies(method, model: Model, to_plain):
         extra = to_plain(model.potential_energy, "potential energy")
         frame = getattr(method, "inertial", None) or model.frame
         bodies = getattr(method, "_bodies", None) or ()
+        rest = to_plain(sp.Matrix([c.diff(TIME) for c in method.q]), "speeds")
         if bodies and frame is not None:
             T = to_plain(me.kinetic_energy(frame, *bodies), "kinetic energy")
-            return T, T - L + extra
-        rest = to_plain(sp.Matrix([c.diff(TIME) for c in method.q]), "speeds")
+            # V = T - L only when L's kinetic energy is the bodies' (found by review: a rotor inertia
+            # written into L, or bodies= listing some of the bodies, put a speed into V, status OK)
+            if not _reads_speeds(T - L, list(rest)):
+                return T, T - L + extra
         at_rest = L.xreplace({s: 0 for s in rest})
         # a moving frame or support gives T terms of degree 1 and 0 in the speeds; the split at u = 0
         # would move the latter into V with the wrong sign (found by review: a particle seen from a
@@ -304,6 +307,22 @@ def _energies(method, model: Model, to_plain):
     V = to_plain(sum((b.potential_energy for b in bodies), sp.S.Zero) + model.potential_energy,
                  "potential energy")
     return T, V
+
+
+def _reads_speeds(expr, speeds: list) -> bool:
+    """Does ``expr`` change with the speeds? Numerically, at seeded random values of everything else
+    (the difference T - L of sympy's expressions need not simplify to a speed-free form)."""
+    import numpy as np
+
+    others = sorted(sp.sympify(expr).free_symbols - set(speeds), key=str)
+    f = sp.lambdify(others + speeds, expr, "numpy")
+    rng = np.random.default_rng(20261126)
+    for _ in range(3):
+        point = list(rng.uniform(0.3, 1.3, len(others)))
+        a, b = (complex(f(*point, *rng.uniform(-2.0, 2.0, len(speeds)))) for _ in range(2))
+        if abs(a - b) > 1e-9 * (1.0 + abs(a) + abs(b)):
+            return True
+    return False
 
 
 def _with_route(eom, route: str):
