@@ -477,8 +477,12 @@ class Model:
             exprs.append((f"mass of {body.name}", _as_expr(body.mass, f"mass of {body.name}")))
             if isinstance(body, me.RigidBody):
                 exprs += [(f"inertia of {body.name}", entry) for entry in _dyadic_entries(body.inertia[0])]
-            exprs += [(f"position of body {body.name}", entry)
-                      for entry in _vector_entries(body.masscenter.pos_from(self.origin))]
+            position = _vector_entries(body.masscenter.pos_from(self.origin))
+            rates = sorted({d for entry in position for d in sp.sympify(entry).atoms(sp.Derivative)}, key=str)
+            if rates:  # found by review: its velocity then held q'' and the equations were garbage, status OK
+                raise ModelError(f"the position of body {body.name} contains the speed {rates[0]}: positions "
+                                 "depend on the coordinates and t only")
+            exprs += [(f"position of body {body.name}", entry) for entry in position]
         for load in self.loads:
             kind = "torque on frame" if load.is_torque else "force on point"
             exprs += [(f"{kind} {load.where.name}", entry) for entry in _vector_entries(load.vector)]

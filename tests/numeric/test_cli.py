@@ -150,8 +150,10 @@ def test_simulate_failed_run_exits_1_and_keeps_samples(tmp_path, capsys):
                  "--x0", "x1=0.1,x2=0,x3=0", "--out", str(out)])
     captured = capsys.readouterr()
     assert code == 1 and "NaN or infinite" in captured.out
-    # the RuntimeWarning at the failure, one line
-    (line,) = captured.err.splitlines()
+    # the stability pre-check's warning (h w = 14 for K = 1e8, outside RK4's 2.83; it runs without the
+    # jacobian output since review), then the RuntimeWarning at the failure, one line each
+    stability, line = captured.err.splitlines()
+    assert stability.startswith("lagcodegen simulate: warning: step h = 0.001 with the largest frequency")
     assert re.fullmatch(r"lagcodegen simulate: warning: rk4 stopped at step \d+ \(t = [\d.]+\): the state or its "
                         r"derivatives became NaN or infinite \(the run diverged\)", line), line
     data = np.load(out)

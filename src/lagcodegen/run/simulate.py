@@ -566,16 +566,17 @@ def warn_if_unstable(system: CompiledSystem, x, p, h: float, method: str, t: flo
     |R(h lambda)| per step (R the method's stability function) must not exceed 1 by so much that
     the run, n_steps long, amplifies them more than tenfold.
     """
-    if f"{system.layout.prefix}_jacobian" not in system.layout.functions:
-        return False
     scheme = get_scheme(method)
     if scheme.implicit:  # A-stable or close to it; the pre-check is for explicit steps
         return False
     try:
-        J = jacobian(system, x, p, t, r=r)
+        if f"{system.layout.prefix}_jacobian" in system.layout.functions:
+            J = jacobian(system, x, p, t, r=r)
+        else:  # found by review: an RK4-only build (every CLI run) blew up to 1e74 with no warning
+            J = _difference_jacobian(system, x, p, t, r)
     except JacobianOverflow:
         J = None
-    except ValueError:  # e.g. a singular mass matrix at x: the run itself reports it
+    except (ValueError, FloatingPointError):  # e.g. a singular mass matrix at x: the run itself reports it
         return False
     if J is None or not np.all(np.isfinite(J)):  # e.g. a parameter of 1e308: the run reports its status
         warnings.warn(f"stability pre-check skipped: the Jacobian at the initial state is not finite "
@@ -675,6 +676,38 @@ def _solve_between(solve_ivp, rhs_until, t0, t_end, x, method, t_eval, rtol, ato
         states.append(solution.y.T[keep])
         x = solution.y[:, -1]
     return np.concatenate(times), np.concatenate(states)
+
+
+def _difference_jacobian(system: CompiledSystem, x, p, t: float, r=None) -> np.ndarray:
+    """df/dx by central differences of the compiled rhs (steps eps^(1/3) (1 + |x_j|)): enough for
+    the stability pre-check's eigenvalues where the kernel has no analytic Jacobian."""
+    layout = system.layout
+    dtype = real_dtype(system)
+    rhs_c = getattr(system.lib, f"{layout.prefix}_rhs")
+    p = np.ascontiguousarray(p, dtype=dtype)
+    driven = ()
+    if layout.inputs:
+        if r is None:
+            raise ValueError(f"model {layout.model!r} is driven by {', '.join(layout.inputs)}: pass r=")
+        driven = (c_pointer(system, np.ascontiguousarray(np.reshape(r, -1), dtype=dtype)),)
+
+    def f(state: np.ndarray) -> np.ndarray:
+        state = np.ascontiguousarray(state, dtype=dtype)
+        out = np.empty_like(state)
+        code = rhs_c(t, c_pointer(system, state), *driven, c_pointer(system, p), c_pointer(system, out))
+        if code != Status.OK:
+            raise FloatingPointError(f"rhs failed near x = {state}: {Status(code).message}")
+        return out.astype(np.float64)
+
+    x = np.asarray(x, dtype=np.float64)
+    J = np.empty((x.size, x.size))
+    for j in range(x.size):
+        step = np.cbrt(np.finfo(dtype).eps) * (1.0 + abs(x[j]))
+        plus, minus = x.copy(), x.copy()
+        plus[j] += step
+        minus[j] -= step
+        J[:, j] = (f(plus) - f(minus)) / (2.0 * step)
+    return J
 
 
 def make_rhs(system: CompiledSystem, params: Mapping | None = None, inputs=None):
