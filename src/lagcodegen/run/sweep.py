@@ -185,7 +185,8 @@ def sweep(system: CompiledSystem, grid: Mapping | None = None, *, members: Mappi
         Driven models: the base inputs as `simulate` takes them (no callable); a grid or table
         column named like an input is its amplitude, multiplying the base signal (constant 1
         where ``inputs`` gives none). ``member_inputs``: instead, one input spec per member.
-        Members of a driven model run on the scalar kernel.
+        Members whose inputs change in time run on the scalar kernel; inputs held constant per
+        member ride the lane kernel as parameters.
 
     Every argument is checked before any member runs; errors name the argument. A chunk that
     raises (a Dask worker lost, say) does not lose the others: its members get status

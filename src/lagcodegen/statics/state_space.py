@@ -102,7 +102,8 @@ def linearize_state(eom: EquationsOfMotion, x0: Any, r0: Any = None, values: Map
     Parameters
     ----------
     eom : EquationsOfMotion
-        Without holonomic constraints.
+        With or without constraints (constrained: about a consistent state, and ``A_reduced`` in
+        the directions the constraints allow).
     x0 : sequence (2n,) or mapping state (Symbol or name) -> value
         The operating state (q, u); any state, not only an equilibrium. With dependent speeds
         eliminated, also the state simulate takes, (q, independent speeds): the velocity
