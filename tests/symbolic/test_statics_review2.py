@@ -159,3 +159,16 @@ def test_a_held_coordinate_needs_a_finite_number(value):
     eom = derive_equations(catalog.slider_crank())
     with pytest.raises(ValueError, match="fix: coordinate theta needs a"):
         constrained_equilibrium(eom, list(catalog.slider_crank_state(0.4)[:5]), fix={"theta": value})
+
+
+@pytest.mark.parametrize("tol", [-1.0, 0.0, float("nan"), "1e-9", True])
+def test_a_tolerance_must_be_a_positive_number(tol):
+    """A negative tol accepted the double pendulum's rest as steady (the residual, 0, is <= -0); NaN gave
+    a 'relative to its terms nan' message. Both tolerances are now checked by name."""
+    from lagcodegen import catalog
+    from lagcodegen.statics.consistent import consistent_state
+
+    with pytest.raises(ValueError, match="tol must be a positive finite number"):
+        steady_motion(derive_equations(catalog.double_pendulum()), {"q1_d": 0.0}, ["q1"], ["q1_d"], tol=tol)
+    with pytest.raises(ValueError, match="tol must be a positive finite number"):
+        consistent_state(derive_equations(catalog.cartesian_pendulum()), {"x": 0.5}, tol=tol)

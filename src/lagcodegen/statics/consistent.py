@@ -27,6 +27,8 @@ best least-squares point.
 """
 from __future__ import annotations
 
+import math
+import numbers
 from collections.abc import Mapping, Sequence
 from typing import Any
 
@@ -83,6 +85,8 @@ def consistent_state(eom: EquationsOfMotion, q: Any = None, u: Any = None, *,
         constraints that cannot be satisfied (the message names each violated constraint: index,
         expression, residual).
     """
+    if isinstance(tol, bool) or not isinstance(tol, numbers.Real) or not 0 < tol < math.inf:
+        raise ValueError(f"consistent_state: tol must be a positive finite number, got {tol!r}")
     functions = _constraint_functions(eom, values, t)
     q0, held = _given(eom, q, fix, list(eom.q), "coordinate")
     if len(eom.configuration):  # found by review: a Kane four-bar 2 units off its loop closure was returned

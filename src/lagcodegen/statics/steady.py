@@ -15,6 +15,8 @@ differentiates, lambdified once per model.
 """
 from __future__ import annotations
 
+import math
+import numbers
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
@@ -88,6 +90,8 @@ def steady_motion(eom: EquationsOfMotion, given: Mapping, unknowns: Sequence[str
     require_closed_form(eom, "steady_motion")
     eom = hold_inputs(eom, inputs)  # found by review: a driven model failed with "Cannot convert expression to float"
 
+    if isinstance(tol, bool) or not isinstance(tol, numbers.Real) or not 0 < tol < math.inf:
+        raise ValueError(f"steady motion: tol must be a positive finite number, got {tol!r}")
     if not steady:
         raise ValueError("steady motion: name at least one steady speed")
     if eom.n_q != eom.n_u:
