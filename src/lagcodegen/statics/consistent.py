@@ -85,8 +85,7 @@ def consistent_state(eom: EquationsOfMotion, q: Any = None, u: Any = None, *,
         constraints that cannot be satisfied (the message names each violated constraint: index,
         expression, residual).
     """
-    if isinstance(tol, bool) or not isinstance(tol, numbers.Real) or not 0 < tol < math.inf:
-        raise ValueError(f"consistent_state: tol must be a positive finite number, got {tol!r}")
+    checked_tolerance(tol, "consistent_state")
     functions = _constraint_functions(eom, values, t)
     q0, held = _given(eom, q, fix, list(eom.q), "coordinate")
     if len(eom.configuration):  # found by review: a Kane four-bar 2 units off its loop closure was returned
@@ -111,12 +110,25 @@ def constraint_residuals(eom: EquationsOfMotion, q: Any, u: Any, values: Mapping
     return np.concatenate([phi(qv), A(qv) @ uv + phi_t(qv)])
 
 
+def term_sizes(rows) -> sp.Matrix:
+    """Per row, the sum of the absolute values of its additive terms: the size a residual of the
+    row is measured against (its rounding level is a small multiple of eps times this)."""
+    return sp.Matrix([sum((sp.Abs(term) for term in sp.Add.make_args(row)), sp.S.Zero) for row in rows])
+
+
+def checked_tolerance(tol, what: str) -> float:
+    """``tol`` as a positive finite number, else a ValueError naming ``what``'s tol."""
+    if isinstance(tol, bool) or not isinstance(tol, numbers.Real) or not 0 < tol < math.inf:
+        raise ValueError(f"{what}: tol must be a positive finite number, got {tol!r}")
+    return float(tol)
+
+
 def residual_sizes(eom: EquationsOfMotion) -> tuple[sp.Matrix, sp.Matrix]:
     """The size of the terms of phi_i and of A u + dphi/dt, symbolically, m rows each (see
     `constraint_scales`)."""
     A = sp.Matrix(eom.constraint_jacobian)
     absolute = A.applyfunc(sp.Abs)
-    terms = sp.Matrix([sum((sp.Abs(term) for term in sp.Add.make_args(row)), sp.S.Zero) for row in eom.constraints])
+    terms = term_sizes(eom.constraints)
 
     def sizes(symbols):  # |x_j| + max_k |x_k|, as in `_scale`
         largest = sp.Max(*[sp.Abs(s) for s in symbols])
@@ -150,7 +162,7 @@ def _constraint_functions(eom: EquationsOfMotion, values: Mapping | None, t: flo
     q, m, n = list(eom.q), eom.m, eom.n
     if m == 0:
         return (lambda x: np.zeros(0),) + (lambda x: np.zeros((0, n)),) + (lambda x: np.zeros(0),) * 2
-    sizes = sp.Matrix([sum((sp.Abs(term) for term in sp.Add.make_args(row)), sp.S.Zero) for row in eom.constraints])
+    sizes = term_sizes(eom.constraints)
     out = []
     for expr, shape, what in ((eom.constraints, (m,), "constraints"),
                               (eom.constraint_jacobian, (m, n), "constraint Jacobian"),
@@ -249,7 +261,7 @@ def _solve_configuration(eom, values, t: float, q0: np.ndarray, held: list, tol:
     q = list(eom.q)
     rows = sp.Matrix(eom.configuration)
     jacobian = rows.jacobian(q)
-    terms = sp.Matrix([sum((sp.Abs(term) for term in sp.Add.make_args(row)), sp.S.Zero) for row in rows])
+    terms = term_sizes(rows)
     f, J, size = (sp.lambdify([q], substitute_values(eom, matrix, vals, "configuration constraints"), "numpy")
                   for matrix in (rows, jacobian, terms))
     k = rows.rows

@@ -15,8 +15,6 @@ differentiates, lambdified once per model.
 """
 from __future__ import annotations
 
-import math
-import numbers
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
@@ -24,7 +22,7 @@ import numpy as np
 import sympy as sp
 
 from ..symbolic.derive import EquationsOfMotion
-from .consistent import residual_sizes
+from .consistent import checked_tolerance, residual_sizes, term_sizes
 from .equilibria import hold_inputs, named_point, require_closed_form, resolve_values, substitute_values
 
 #: the functions that switch, as the complex step must see them: the branch the real part is on,
@@ -90,8 +88,7 @@ def steady_motion(eom: EquationsOfMotion, given: Mapping, unknowns: Sequence[str
     require_closed_form(eom, "steady_motion")
     eom = hold_inputs(eom, inputs)  # found by review: a driven model failed with "Cannot convert expression to float"
 
-    if isinstance(tol, bool) or not isinstance(tol, numbers.Real) or not 0 < tol < math.inf:
-        raise ValueError(f"steady motion: tol must be a positive finite number, got {tol!r}")
+    checked_tolerance(tol, "steady motion")
     if not steady:
         raise ValueError("steady motion: name at least one steady speed")
     if eom.n_q != eom.n_u:
@@ -250,7 +247,7 @@ def _functions(eom: EquationsOfMotion, values: Mapping | None, t: float) -> tupl
                             A * sp.Matrix(eom.u) + sp.Matrix(eom.constraint_rate)) if m else sp.zeros(0, 1)
     rows_f = sp.lambdify([states], substitute_values(eom, rows, vals, "steady motion: constraints"), _MODULES)
     n = eom.n_u
-    terms = sp.Matrix([sum((sp.Abs(term) for term in sp.Add.make_args(row)), sp.S.Zero) for row in rhs])
+    terms = term_sizes(rhs)
     terms_f = sp.lambdify([states], substitute_values(eom, terms, vals, "steady motion: F"), "numpy")
     if m:
         positions, velocities = residual_sizes(eom)
