@@ -56,7 +56,7 @@
 #define LCG_NONFINITE_STATE 2 /* the state or its derivatives became NaN or infinite (the run diverged) */
 #define LCG_NEWTON_FAILED 3 /* the implicit step's Newton iteration did not converge */
 #define LCG_UNKNOWN_METHOD 4 /* the method is not compiled into this kernel */
-#define LCG_SINGULAR_CONSTRAINTS 5 /* the constraint Jacobian lost rank (redundant constraints, a singular configuration, or a step crossed one) */
+#define LCG_SINGULAR_CONSTRAINTS 5 /* the constraint Jacobian lost rank (redundant constraints, a singular configuration, or a step that crossed one or neared it faster than the step resolves) */
 #define LCG_NONFINITE_INPUT 6 /* an input value is NaN or infinite */
 #define LCG_INPUT_FAILED 7 /* the input function failed (a callable raised or returned the wrong shape, or an empty input table) */
 #define LCG_BAD_ARGUMENT 8 /* an argument of a C driver or step function is out of range (n_steps < 0, stride < 1, a time or step size that is not finite): nothing was run or written */

@@ -33,7 +33,8 @@ STATUS_TABLE = (
     StatusCode("NEWTON_FAILED", 3, "the implicit step's Newton iteration did not converge"),
     StatusCode("UNKNOWN_METHOD", 4, "the method is not compiled into this kernel"),
     StatusCode("SINGULAR_CONSTRAINTS", 5, "the constraint Jacobian lost rank (redundant constraints, a "
-                                          "singular configuration, or a step crossed one)"),
+                                          "singular configuration, or a step that crossed one or neared it "
+                                          "faster than the step resolves)"),
     StatusCode("NONFINITE_INPUT", 6, "an input value is NaN or infinite"),
     StatusCode("INPUT_FAILED", 7, "the input function failed (a callable raised or returned the wrong shape, "
                                   "or an empty input table)"),

@@ -33,6 +33,14 @@ PIVOT_JUMP = 1e2
 #: ... and a pivot below PIVOT_COLLAPSE times its value at the run's first state is a singular
 #: configuration approached slowly (the landing check of the solves only asks for pivots > 0).
 PIVOT_COLLAPSE = {"double": 1e-8, "float": 1e-4}
+#: ... and (dependent speeds eliminated) a det(A_D) that changes by more than DEPENDENT_JUMP in one
+#: step is a singular A_D the step does not resolve: the dependent speeds scale with 1/det(A_D), and
+#: a fixed step near det(A_D) = 0 can turn back short of it (no sign change) with a wrong answer.
+#: sympy's non-minimal Kane pendulum (u1 = -u2 q2/q1) at h = 1e-2 from 300 random starts: a
+#: relative energy error above 1e-4 with status OK in 49 runs; with a 2x test 1 (error 3e-4),
+#: with 4x 3. The explicit steps apply it to every later stage against x too (`_explicit_stage_lines`):
+#: a step can come back from the singular A_D to x's side (tests/constraints/test_dependent_singularity.py).
+DEPENDENT_JUMP = 2.0
 
 
 #: a dynamics kernel this small (ops after CSE) is inlined into every explicit Runge-Kutta stage,
@@ -68,6 +76,7 @@ def stepper_context(system, names, real: str, methods: list) -> dict:
                "n_point_values": 3 * points, "work_size": N, "method_rows": [], "gauge_size": G,
                "pivot_jump": _literal(PIVOT_JUMP, real), "pivot_collapse": _literal(PIVOT_COLLAPSE[real], real),
                "pivot_jump_text": f"{PIVOT_JUMP:g}",
+               "dependent_jump": _literal(DEPENDENT_JUMP, real), "dependent_jump_text": f"{DEPENDENT_JUMP:g}",
                "pivot_collapse_text": f"{PIVOT_COLLAPSE[real]:.0e}".replace("e-0", "e-"),
                "n_pivots": n + system.n_constraints, "has_dependent": bool(system.u_dependent),
                "step_jacobians": []} | input_context(system, names, real)
@@ -100,7 +109,8 @@ def stepper_context(system, names, real: str, methods: list) -> dict:
             context["explicit_steppers"].append(
                 {"name": scheme.name, "title": scheme.title or scheme.name, "order": scheme.order,
                  "stages": scheme.stages,
-                 "lines": _explicit_stage_lines(scheme, prefix, len(system.q), N, dynamics, bool(system.inputs))})
+                 "lines": _explicit_stage_lines(scheme, prefix, len(system.q), N, dynamics, bool(system.inputs),
+                                                (G - 1, real) if system.u_dependent else None)})
         elif kind == KIND_IMPLICIT:
             context["tableaux"].append(_tableau_record(scheme, real))
             s = scheme.stages
@@ -290,20 +300,35 @@ def _tableau_record(scheme, real: str) -> dict:
             "c_values": ", ".join(value(v) for v in scheme.c), "c_comment": ", ".join(map(str, scheme.c))}
 
 
-def _explicit_stage_lines(scheme, prefix: str, n_q: int, N: int, dynamics: str, driven: bool = False) -> list:
+def _explicit_stage_lines(scheme, prefix: str, n_q: int, N: int, dynamics: str, driven: bool = False,
+                          determinant: tuple | None = None) -> list:
     """Straight-line stages of one explicit tableau: only its nonzero a_ij and b_i, read from the
     method's coefficient arrays (constant indices, so the compiler folds them). ``driven``: the
-    stages read the inputs r (held, or r + c_i dr on a ramp; `input_context`)."""
+    stages read the inputs r (held, or r + c_i dr on a ramp; `input_context`). ``determinant``
+    (dependent speeds eliminated): (the index of det(A_D) in the gauge, the real type); every later
+    stage writes its own gauge, and a stage whose det(A_D) has the other sign than x's, or differs
+    from it by more than DEPENDENT_JUMP, stops the step with LCG_SINGULAR_CONSTRAINTS, as the
+    monitor does between accepted states: the step reaches a singular A_D, which the accepted
+    states alone miss when the step comes back to x's side (found by review: heun at h = 2e-2,
+    whose predictor stage came within 0.0018 L of the horizontal, and dopri5 at 5e-2 turned
+    sympy's non-minimal pendulum back there with status OK)."""
     name = f"{prefix}_{scheme.name}"
 
     def evaluate(i, state):
-        gauge = "gauge" if i == 0 else "0"  # stage 0 is evaluated at x itself: its pivots are x's
+        gauge = "gauge" if i == 0 else "stage_gauge" if determinant is not None else "0"  # stage 0 is at x
         inputs = ""
         if driven:
             inputs = "r, " if scheme.c[i] == 0 else f"{prefix}_stage_inputs(r, dr, {name}_c[{i}], rs), "
-        return [f"status = {dynamics}(t + {name}_c[{i}] * h, {state}, {inputs}p, k + {i * N}, k + {i * N + n_q}, "
-                f"{gauge});",
-                "if (status != LCG_OK) return status;"]
+        lines = [f"status = {dynamics}(t + {name}_c[{i}] * h, {state}, {inputs}p, k + {i * N}, k + {i * N + n_q}, "
+                 f"{gauge});",
+                 "if (status != LCG_OK) return status;"]
+        if i > 0 and determinant is not None:
+            d, real = determinant
+            jump, fabs = _literal(DEPENDENT_JUMP, real), "fabsf" if real == "float" else "fabs"
+            stage, start = f"stage_gauge[{d}]", f"gauge[{d}]"
+            lines.append(f"if (!({stage} * {start} > 0) || {fabs}({stage}) > {jump} * {fabs}({start}) "
+                         f"|| {jump} * {fabs}({stage}) < {fabs}({start})) return LCG_SINGULAR_CONSTRAINTS;")
+        return lines
 
     if not needed_stages(scheme)[0]:
         raise EmitError(f"method {scheme.name!r}: its first stage is never used, so no stage reads the pivots of x")
