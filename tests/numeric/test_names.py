@@ -337,17 +337,25 @@ def _kinds():
         return Model(name, [x, y, theta], list(extra), kinetic_energy=T, motion_constraints=[blade],
                      dependent_speeds=[y], parameter_values={e: 0.3 for e in extra})
 
+    def conservative(name, extra):  # for the momentum kernel of symplectic Euler (its output G)
+        x = me.dynamicsymbols("x")
+        S = sum(extra, sp.S.Zero) / len(extra) if extra else sp.Integer(4)
+        return Model(name, [x], list(extra), kinetic_energy=(1 + x**2) * x.diff()**2 / 2,
+                     potential_energy=S * x**2 / 2, parameter_values={e: 4.0 for e in extra})
+
     return {"driven": (driven, ("rhs", "jacobian", "step_jacobian", "energy", "points", "measurements"),
                        ("rk4", "implicit_midpoint")),
+            "symplectic": (conservative, ("rhs", "momentum", "energy"), ("rk4", "symplectic_euler")),
             "tree": (tree, ("rhs", "jacobian", "energy", "points"), ("rk4", "implicit_midpoint")),
             "eliminated": (eliminated, ("rhs",), ("rk4",))}
 
 
 @pytest.mark.compiler
-@pytest.mark.parametrize("kind", ["driven", "tree", "eliminated"])
+@pytest.mark.parametrize("kind", ["driven", "tree", "eliminated", "symplectic"])
 def test_every_identifier_of_the_generated_c_can_name_a_parameter(kind, tmp_path):
     """Found by review: a parameter named gauge (the dynamics' argument), Br (a local of the
-    driven jacobian) or pivot_0 (of the recursive dynamics) failed to compile. Here every
+    driven jacobian), pivot_0 (of the recursive dynamics) or G (the momentum kernel's output, with
+    the default methods) failed to compile. Here every
     identifier the plain model's C declares names a parameter of the same physics at once; the
     kernels must build and give the plain model's numbers (the second route: only names differ)."""
     from lagcodegen.pipeline import compile_model
@@ -360,13 +368,15 @@ def test_every_identifier_of_the_generated_c_can_name_a_parameter(kind, tmp_path
     own = {*layout.coordinates, *layout.speeds, *layout.dependent_speeds, *layout.inputs}  # its own symbols
     names = [n for n in _declared_identifiers(plain_sources) if n not in own]
     assert {"gauge", "status", "work"} <= set(names)  # the names of the review and the common ones
+    assert kind != "symplectic" or "G" in names
     hostile = build(f"names_hostile_{kind}", [sp.Symbol(n, positive=True) for n in names])
     runs = []
     for model in (plain, hostile):
         system = compile_model(model, outputs=outputs, methods=methods, cache_dir=tmp_path)
-        x0 = {"x": 0.3, "x_d": 0.1} if kind == "driven" else {"q": 0.5} if kind == "tree" else \
+        x0 = {"x": 0.3, "x_d": 0.1} if kind in ("driven", "symplectic") else {"q": 0.5} if kind == "tree" else \
             {"x": 0.0, "y": 0.0, "theta": -0.8, "x_d": 0.5, "theta_d": 2.0}
         extra = {"inputs": [0.0]} if kind == "driven" else {}
-        runs.append(simulate(system, x0, t_end=0.5, h=1e-3, **extra))
+        method = "symplectic_euler" if kind == "symplectic" else "rk4"
+        runs.append(simulate(system, x0, t_end=0.5, h=1e-3, method=method, **extra))
     assert runs[0].ok and runs[1].ok
     np.testing.assert_allclose(runs[1].x, runs[0].x, rtol=1e-12, atol=1e-12)

@@ -23,7 +23,10 @@ RESERVED = {"t", "x", "p", "out", "M", "F", "ud", "qd", "xdot", "B", "J", "c", "
             # the kernels' own parameters and locals (found by review: a parameter named gauge, the
             # dynamics' argument, failed to compile with "redeclared as different kind of symbol")
             "gauge", "H", "det", "entry", "factor", "pivot", "saved", "scale", "size", "sum", "swap", "width",
-            "xs", "fp", "fm", "angle", "acc", "cols", "count", "n", "product", "terms", "positions", "t0"}
+            "xs", "fp", "fm", "angle", "acc", "cols", "count", "n", "product", "terms", "positions", "t0",
+            # the momentum kernel's output G (found by review: a parameter G, the gravitational
+            # constant, failed to compile with the default methods) and the steps' stage gauge
+            "G", "stage_gauge"}
 #: ... and those of the functions of a model with inputs or measurements (only then, so that the
 #: names of the other models' symbols do not change)
 DRIVEN_RESERVED = {"r", "dr", "rs", "r0", "r1", "y", "Fx", "Fr", "Jr", "Br", "hold", "inputs", "context"}
