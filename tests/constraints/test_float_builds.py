@@ -65,3 +65,25 @@ def test_host_float_build_keeps_the_constraint(compiled_system):
     print(f"\nfloat: max |phi|, |A u| without projection {free}, with {kept}")
     assert kept[0] < 2e-6 and kept[1] < 1e-6
     assert free[0] > 5 * kept[0]
+
+
+@pytest.mark.compiler
+@pytest.mark.parametrize("compiler", ["gcc", "clang"])
+@pytest.mark.parametrize("precision", ["double", "float"])
+def test_an_eliminated_model_builds_without_warnings(compiler, precision, require_tool, tmp_path):
+    """Found by review: the eliminated sleigh's C (dependent speeds solved in the dynamics, no LDL^T
+    of M) defined <prefix>_pivot_failure without calling it, and -Wall -Wextra -Werror, the README's
+    flags, refused it with gcc and clang."""
+    from test_chaplygin_sleigh import sleigh
+    from test_velocity_elimination import Y
+
+    from lagcodegen import derive_equations
+
+    cc = require_tool(compiler)
+    eom = derive_equations(sleigh(dependent_speeds=[Y]))
+    sources = render_sources(reduce_expressions(eom, ("rhs", "energy", "points")), precision, methods=METHODS)
+    (tmp_path / sources.header_name).write_text(sources.header)
+    source = tmp_path / sources.source_name
+    source.write_text(sources.source)
+    run([cc, "-std=c99", "-Wall", "-Wextra", "-Wpedantic", "-Werror", "-O2", "-c", source,
+         "-o", tmp_path / "sleigh.o"])

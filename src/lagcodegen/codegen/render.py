@@ -196,6 +196,11 @@ def render_sources(system: ReducedSystem, precision: str = "double", model_name:
     context = _context(system, names, layout, functions, real, has_dynamics) | steppers
     context["prototypes"] = context["prototypes"] + stepper_prototypes
     context |= _trig_context(printer, steppers)
+    # defined only where called (found by review: an eliminated model's dynamics never calls it, and
+    # the unused static function failed the README's -Wall -Wextra -Werror build)
+    failure_call = f"{names.prefix}_pivot_failure("
+    context["uses_pivot_failure"] = has_dynamics and (context["has_symplectic_euler"] or any(
+        failure_call in line for f in functions for line in f["body"]))
     context["needs_spd"] = bool((context["has_constraints"] and (context["has_dynamics"]
                                                                  or context["has_constraint_terms"]))
                                 or context["has_symplectic_euler"] or bool(system.u_dependent and has_dynamics))
