@@ -87,7 +87,10 @@ class Link:
         norm = sp.sqrt(sum(a ** 2 for a in axis))
         if norm == 0:
             raise TreeError(f"link {self.name!r}: the axis is the zero vector")
-        set_("axis", tuple(sp.nsimplify(a / norm) if a.is_Rational or a.is_Integer else a / norm for a in axis))
+        # exact only when every component is (found by review: (3, 0.001, 0) has a float norm, and
+        # nsimplify of 3/norm = 0.99999994 gave 1, an axis 5.6e-8 off unit length)
+        exact = all(a.is_Rational for a in axis)
+        set_("axis", tuple(sp.nsimplify(a / norm) if exact else sp.Float(a / norm) for a in axis))
         set_("offset", self._vector("offset", self.offset))
         set_("center", self._vector("center", self.center))
         set_("variable", self._expr("variable", self.variable))

@@ -414,3 +414,29 @@ def test_derive_on_the_command_line_says_a_recursive_tree_forms_no_m_and_f(tmp_p
     out, err = capsys.readouterr()
     assert code == 2 and "M = None" not in out
     assert "needs the closed-form M and F" in err and "formulation='closed'" in err
+
+
+def test_an_axis_with_float_components_is_a_unit_vector():
+    """Found by review: (3, 0.001, 0) has a float norm, and the exact-looking 3 / norm =
+    0.99999994 was nsimplified to 1, an axis 5.6e-8 off unit length (the recursive kernel, which
+    reads the stored axis, then missed Pinocchio's accelerations by 2.4e-8). Expected: numpy's
+    a / |a|."""
+    q = me.dynamicsymbols("q")
+    for axis in ((3, 0.001, 0), (1, 2.5, 0), (0.6, 0.8, 0), (2, 0, 1e-9)):
+        stored = np.array([float(a) for a in Link("rod", None, "revolute", axis, q).axis])
+        expected = np.array(axis, dtype=float) / np.linalg.norm(axis)
+        np.testing.assert_allclose(stored, expected, rtol=1e-15, atol=1e-17)
+    exact = Link("rod", None, "revolute", (3, 4, 0), q).axis  # all exact: stays exact
+    assert exact == (sp.Rational(3, 5), sp.Rational(4, 5), 0)
+
+
+def test_a_mass_on_its_joint_axis_given_as_floats_is_refused_like_an_exact_one():
+    """Found by review: link b turns about (0.6, 0.8, 0) and carries a point mass at (0.3, 0.4, 0),
+    on that axis, so by hand axis x r = 0 and q1 has no inertia. With the same numbers as
+    integers (3, 4) the recursive derivation refused it; as floats its pivot came out 1.7e-17 and
+    the run went on with status OK, q1 not converging as h shrinks."""
+    q0, q1 = me.dynamicsymbols("q0:2")
+    links = [Link("a", None, "revolute", (1, 0, 0), q0, mass=1.0, center=(0, 0, -1), inertia=(0.1, 0.1, 0.1, 0, 0, 0)),
+             Link("b", "a", "revolute", (0.6, 0.8, 0), q1, offset=(0, 0, -1), mass=2.0, center=(0.3, 0.4, 0))]
+    with pytest.raises(ModelError, match=r"link 'b' \(joint variable q1\) has no inertia"):
+        derive_equations(Model("on_axis", [q0, q1], [], tree=links, gravity=(0, 0, -9.81), formulation="recursive"))

@@ -188,6 +188,19 @@ def _vector(xyz, frame) -> me.Vector:
 
 
 # -- recursive: the articulated-body algorithm written out ------------------------------------------
+
+#: a numeric articulated pivot below this fraction of the largest numeric entry of the link's
+#: articulated inertia is float rounding of an exact zero (the mass on the axis, given as floats)
+PIVOT_ROUNDING = 1e-12
+
+
+def _rounding_zero(pivot, inertia) -> bool:
+    """True for a pivot that is a number at rounding level of the articulated inertia's entries."""
+    if not pivot.is_Number:
+        return False
+    entries = [abs(float(e)) for row in inertia for e in row if sp.sympify(e).is_Number]
+    return bool(entries) and abs(float(pivot)) <= PIVOT_ROUNDING * max(entries)
+
 class _Recorder:
     """Named scalar assignments; an expression that is already a symbol, a number or a negated
     symbol is used in place (no assignment)."""
@@ -382,7 +395,9 @@ def derive_recursive(model: Model, choice: FormulationChoice | None = None) -> E
         S = joints[i].S
         U[i] = rec.vector(_mv(Ii, S), f"U{i}", "012345")
         D[i] = rec.bind(_dot(S, U[i]), f"D_{i}")
-        if D[i] == 0:  # 1 / D would print as zoo: refused as the closed form refuses a speed without inertia
+        if D[i] == 0 or _rounding_zero(D[i], IA[i]):
+            # 1 / D would print as zoo (or, from float data, 1 / 1.7e-17 as a huge finite pivot found by
+            # review): refused as the closed form refuses a speed without inertia
             raise ModelError(f"model {model.name!r}: link {links[i].name!r} (joint variable {theta[i]}) has no "
                              "inertia: the articulated inertia about its joint's axis is zero (it and the links it "
                              "carries have no mass, or their mass lies on that axis and no inertia about it), so its "
