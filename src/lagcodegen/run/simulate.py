@@ -52,6 +52,11 @@ class StabilityWarning(UserWarning):
     """The step lies outside the method's linear stability region at the initial state."""
 
 
+class UndefinedOutputWarning(UserWarning):
+    """A recorded output (a point, a measurement, the energy) is NaN or infinite at a finite state:
+    its expression is undefined there (sqrt or log of a negative number, a division by zero)."""
+
+
 @dataclass(frozen=True)
 class Trajectory:
     """Samples of one run.
@@ -347,6 +352,7 @@ def simulate(system: CompiledSystem, x0, t_end: float, h: float, method: str = "
         r0 = None if signal is None else np.zeros(len(system.layout.inputs)) if callable(signal) else signal.at(t0)
         warn_if_unstable(system, x, p, h, method, t0, n_steps, r=r0)
     trajectory = _run(system, x, p, t0, h, n_steps, stride, method, outputs, track, signal, ramp)
+    warn_if_outputs_undefined(trajectory)
     if tolerance is not None:
         warn_if_drifted(trajectory, tolerance, system.layout.n_constraints, system.layout.n_holonomic)
     if not outputs["project"]:
@@ -362,6 +368,34 @@ def simulate(system: CompiledSystem, x0, t_end: float, h: float, method: str = "
     if not outputs["residuals"] and trajectory.residuals is not None:  # kept for the drift check only
         trajectory = replace(trajectory, residuals=None)
     return trajectory
+
+
+def warn_if_outputs_undefined(trajectory: Trajectory) -> bool:
+    """Warn (`UndefinedOutputWarning`, and return True) for each recorded output that is not finite
+    at a sample whose state is: the run's status speaks of the state only (found by review: a
+    point at (sqrt(x), 0) and a measurement log(x) were NaN at 60 % of a run's samples, status OK,
+    no word, and the animation silently left the point out)."""
+    finite = np.all(np.isfinite(trajectory.x), axis=1)
+    columns = []
+    if trajectory.points is not None:
+        columns += [(f"point {name!r}", np.all(np.isfinite(trajectory.points[:, j, :]), axis=1))
+                    for j, name in enumerate(trajectory.point_names)]
+    if trajectory.measurements is not None:
+        columns += [(f"measurement {name!r}", np.isfinite(trajectory.measurements[:, j]))
+                    for j, name in enumerate(trajectory.measurement_names)]
+    if trajectory.energy is not None:
+        columns.append(("the energy", np.isfinite(trajectory.energy)))
+    warned = False
+    for what, defined in columns:
+        undefined = np.flatnonzero(finite & ~defined)
+        if len(undefined):
+            first = int(undefined[0])
+            state = np.array2string(np.asarray(trajectory.x[first], dtype=float), precision=4)
+            warnings.warn(f"{what} is NaN or infinite at {len(undefined)} of the {len(finite)} samples whose state is "
+                          f"finite, first at t = {trajectory.t[first]:.6g} (state {state}): its expression is "
+                          "undefined there", UndefinedOutputWarning, stacklevel=3)
+            warned = True
+    return warned
 
 
 def check_hold(method: str, ramp: int) -> None:
