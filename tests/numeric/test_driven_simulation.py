@@ -12,6 +12,7 @@ Independent references, all written here without the code under test:
 """
 from __future__ import annotations
 
+import math
 import warnings
 
 import numpy as np
@@ -158,6 +159,29 @@ def test_the_exported_step_takes_r(oscillator):
     run = simulate(oscillator, {"x": 0.0}, t_end=0.5, h=0.5, inputs=([0.0, 0.5], [0.0, 2.0]), hold="foh",
                    check_stability=False)
     np.testing.assert_array_equal([x2[0], x2[1]], run.x[-1])
+
+
+def test_a_nan_input_to_the_exported_steps_is_named_as_an_input(oscillator):
+    """Found by review: a NaN r (a bad sensor value in a firmware loop) passed to the step functions
+    came back as LCG_NONFINITE_STATE, "the run diverged". Now every exported step says
+    LCG_NONFINITE_INPUT and leaves t and x as they were."""
+    ffi, lib, prefix = oscillator.ffi, oscillator.lib, oscillator.layout.prefix
+    p = ffi.new("double[]", [M, K, C])
+    work = ffi.new("double[]", int(getattr(lib, f"{prefix.upper()}_WORK_SIZE")))
+    good, bad = ffi.new("double[]", [1.0]), ffi.new("double[]", [math.nan])
+    methods = {name: i for i, name in enumerate(oscillator.layout.methods)}
+    calls = [lambda t, x, name=name: getattr(lib, f"{prefix}_step_{name}")(t, x, bad, p, 0.01, work)
+             for name in methods]
+    calls += [lambda t, x: getattr(lib, f"{prefix}_step_rk4_foh")(t, x, good, bad, p, 0.01, work),
+              lambda t, x: getattr(lib, f"{prefix}_step_rk4_foh")(t, x, bad, good, p, 0.01, work),
+              lambda t, x: getattr(lib, f"{prefix}_step_monitored")(methods["rk4"], t[0], x, bad, ffi.NULL, p, 0.01,
+                                                                        work, 1, 0),
+              lambda t, x: getattr(lib, f"{prefix}_step_monitored")(methods["rk4"], t[0], x, good, bad, p, 0.01,
+                                                                        work, 1, 0)]
+    for call in calls:
+        t, x = ffi.new("double *", 0.25), ffi.new("double[]", [0.5, -0.5])
+        assert call(t, x) == Status.NONFINITE_INPUT
+        assert t[0] == 0.25 and [x[0], x[1]] == [0.5, -0.5]
 
 
 def test_the_stability_check_covers_a_callable_without_calling_it(oscillator):
