@@ -344,22 +344,30 @@ static int lcg_cartesian_pendulum_f32_project_onto(const float *A, float *b, flo
 
 #if LCG_BUILD_PART != 1
 /* Project x back onto the constraint manifold at time t: Gauss-Newton on phi(q, t) = 0 with
- * minimum-norm steps (at most 10, until max |phi| <= 1e-06F), then the
- * speeds onto A u + dphi/dt = 0. Returns a status code. */
+ * minimum-norm steps (at most 10, until max |phi| <= 1e-06F, or until a step moves q
+ * by no more than 8 units of rounding of max |q|: phi is then as small as q can make it, for
+ * phi of large terms cannot reach an absolute 1e-06F; A has full rank, so A^+ phi small means phi
+ * small), then the speeds onto A u + dphi/dt = 0. Returns a status code. */
 int lcg_cartesian_pendulum_f32_project(float t, float *x, const float *p)
 {
-    float phi[1], A[2], phi_t[1];
-    int i, j, iteration;
+    float phi[1], A[2], phi_t[1], before[2];
+    int i, j, iteration, stalled = 0;
     for (iteration = 0; iteration <= 10; ++iteration) {
-        float size = 0.0F;
+        float size = 0.0F, moved = 0.0F, magnitude = 0.0F;
         lcg_cartesian_pendulum_f32_constraint_terms(t, x, p, phi, A, phi_t);
         for (i = 0; i < 1; ++i) {
             if (fabsf(phi[i]) > size) size = fabsf(phi[i]);
         }
         if (!isfinite(size)) return LCG_NONFINITE_STATE;
-        if (size <= 1e-06F) break;
+        if (size <= 1e-06F || stalled) break;
         if (iteration == 10) return LCG_NEWTON_FAILED;
+        for (i = 0; i < 2; ++i) before[i] = x[i];
         if (!lcg_cartesian_pendulum_f32_project_onto(A, phi, x)) return LCG_SINGULAR_CONSTRAINTS;
+        for (i = 0; i < 2; ++i) {
+            if (fabsf(x[i] - before[i]) > moved) moved = fabsf(x[i] - before[i]);
+            if (fabsf(x[i]) > magnitude) magnitude = fabsf(x[i]);
+        }
+        stalled = moved <= 9.5367431640625e-07F * magnitude;
     }
     for (i = 0; i < 1; ++i) {
         float acc = phi_t[i];

@@ -481,22 +481,30 @@ static int lcg_four_bar_project_onto(const double *A, double *b, double *v)
 
 #if LCG_BUILD_PART != 1
 /* Project x back onto the constraint manifold at time t: Gauss-Newton on phi(q, t) = 0 with
- * minimum-norm steps (at most 10, until max |phi| <= 1e-12), then the
- * speeds onto A u + dphi/dt = 0. Returns a status code. */
+ * minimum-norm steps (at most 10, until max |phi| <= 1e-12, or until a step moves q
+ * by no more than 8 units of rounding of max |q|: phi is then as small as q can make it, for
+ * phi of large terms cannot reach an absolute 1e-12; A has full rank, so A^+ phi small means phi
+ * small), then the speeds onto A u + dphi/dt = 0. Returns a status code. */
 int lcg_four_bar_project(double t, double *x, const double *p)
 {
-    double phi[2], A[6], phi_t[2];
-    int i, j, iteration;
+    double phi[2], A[6], phi_t[2], before[3];
+    int i, j, iteration, stalled = 0;
     for (iteration = 0; iteration <= 10; ++iteration) {
-        double size = 0.0;
+        double size = 0.0, moved = 0.0, magnitude = 0.0;
         lcg_four_bar_constraint_terms(t, x, p, phi, A, phi_t);
         for (i = 0; i < 2; ++i) {
             if (fabs(phi[i]) > size) size = fabs(phi[i]);
         }
         if (!isfinite(size)) return LCG_NONFINITE_STATE;
-        if (size <= 1e-12) break;
+        if (size <= 1e-12 || stalled) break;
         if (iteration == 10) return LCG_NEWTON_FAILED;
+        for (i = 0; i < 3; ++i) before[i] = x[i];
         if (!lcg_four_bar_project_onto(A, phi, x)) return LCG_SINGULAR_CONSTRAINTS;
+        for (i = 0; i < 3; ++i) {
+            if (fabs(x[i] - before[i]) > moved) moved = fabs(x[i] - before[i]);
+            if (fabs(x[i]) > magnitude) magnitude = fabs(x[i]);
+        }
+        stalled = moved <= 1.7763568394002505e-15 * magnitude;
     }
     for (i = 0; i < 2; ++i) {
         double acc = phi_t[i];

@@ -132,3 +132,26 @@ def test_projection_keeps_the_constraint(cartesian):
 
 def test_parameter_order_is_the_model_order(cartesian):
     assert list(parameter_vector(cartesian)) == [1.0, 1.0, 9.81, 0.0, 0.0]
+
+
+@pytest.mark.parametrize("precision, length, relative", [("double", 1000.0, 1e-15), ("float", 10.0, 1e-6)])
+def test_projection_of_a_long_rod_converges_at_rounding(compiled_system, precision, length, relative):
+    """Found by review: the projection asked max |phi| <= 1e-12 (float 1e-6) absolutely, while
+    phi = x^2 + y^2 - l^2 cannot be evaluated closer than about eps l^2: projected runs of an l = 100
+    rod (double) or an l = 3 one (float) stopped with NEWTON_FAILED, on the constraint to rounding.
+    Now a Newton step at the rounding level of q ends the projection: the runs go on, |phi| stays
+    at rounding relative to l^2, and the angle follows DOP853 on theta'' = -(g/l) sin(theta)."""
+    from scipy.integrate import solve_ivp
+
+    system = compiled_system("cartesian_pendulum", precision=precision)
+    g = 9.81
+    period = 2 * math.pi * math.sqrt(length / g)
+    run = simulate(system, initial_state(length), 3 * period, period / 2000, "rk4",
+                   params={"l": length, "m": 1.0, "g": g}, project=True, residuals=True, stride=100)
+    assert run.ok, run.message
+    assert np.abs(run.residuals[:, 0]).max() <= 8 * relative * length ** 2
+    reference = solve_ivp(lambda _, y: [y[1], -g / length * math.sin(y[0])], (0.0, run.t[-1]), [THETA0, THETA0_D],
+                          method="DOP853", rtol=1e-12, atol=1e-12, t_eval=run.t)
+    theta = np.arctan2(run.x[:, 0].astype(float), -run.x[:, 1].astype(float))
+    wrapped = np.angle(np.exp(1j * (theta - reference.y[0])))  # the long rod turns over the top
+    assert np.max(np.abs(wrapped)) < (1e-6 if precision == "double" else 1e-3)  # rk4 truncation: 7e-8

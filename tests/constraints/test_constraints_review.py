@@ -118,6 +118,25 @@ def test_a_sweep_off_kanes_configuration_constraints_is_warned_of():
     assert max(np.abs(closure(x[:3])).max() for x in result.x_final) < 1e-10
 
 
+@pytest.mark.parametrize("precision, scale", [("double", 1e4), ("float", 10.0)])
+def test_kanes_configuration_projection_of_a_large_linkage_converges_at_rounding(precision, scale):
+    """Found by review: the Newton projection on Kane's configuration constraints asked |f| <= 1e-12
+    (float 1e-6) absolutely; with every length scaled (a 20 m four-bar in mm, or x10 in float) the
+    same consistent angles were refused as "on no configuration" or stopped with NEWTON_FAILED.
+    Now the runs go on, and the loop closure (by hand) stays at rounding relative to the lengths."""
+    model, closure = kane_four_bar()
+    system = compile_model(model, methods=("rk4",), precision=precision)
+    q0, u0 = consistent_state(derive_equations(model), q={"q1": 0.5, "q2": -0.3, "q3": 3.8}, u={"u1": 1.5},
+                              fix=["q1"])
+    params = {name: VALUES[name] * scale for name in ("l1", "l2", "l3", "l4")}
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ConstraintDriftWarning)
+        run = simulate(system, [*q0, u0[0]], 2.0, 1e-3, params=params, project=True)
+    assert run.ok, run.message
+    eps = np.finfo(np.float32 if precision == "float" else np.float64).eps
+    assert max(np.abs(closure(q.astype(float))).max() for q in run.x[:, :3]) <= 100 * eps  # unit lengths
+
+
 def test_a_speed_in_hol_coneqs_is_refused():
     """Was: hol_coneqs=[x - y'] taken as phi = x - y_d with A = (1, 0), and with project=True the particle
     fell with x dragged along, status OK. The energies route refuses a speed in a constraint phi."""

@@ -6,6 +6,13 @@ class EmitError(ValueError):
     """The kernels cannot be written as C; the message names the culprit."""
 
 
+#: the spacing of 1.0 in each precision (machine epsilon)
+UNIT_ROUNDOFF = {"double": 2.0 ** -52, "float": 2.0 ** -23}
+#: a projection onto the constraints has converged when its last Newton step moved the coordinates
+#: by no more than this many units of rounding of their largest magnitude (`<prefix>_project`)
+PROJECTION_STALL = 8
+
+
 def literal(value: float | int, real: str) -> str:
     text = repr(float(value))
     return text + "F" if real == "float" else text

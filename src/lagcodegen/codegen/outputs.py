@@ -18,7 +18,7 @@ import numpy as np
 import sympy as sp
 
 from ..symbolic.equations import EquationsOfMotion
-from .csyntax import comment_text, literal, record
+from .csyntax import PROJECTION_STALL, UNIT_ROUNDOFF, comment_text, literal, record
 from .kernel_text import KernelWriter, kernel_parts, results
 from .ldlt import ldlt_factor_lines, ldlt_substitution_lines
 from .steppers import hot_dynamics
@@ -523,19 +523,24 @@ def _configuration_project_c(w: KernelWriter, kernel) -> dict:
     k = len(dependent)
     tolerance = literal(1e-12 if real == "double" else 1e-6, real)
     fabs = "fabsf" if real == "float" else "fabs"
-    body = [f"{real} H[{k}], HJ[{k * k}];", "int i, iteration;",
+    stall = literal(PROJECTION_STALL * UNIT_ROUNDOFF[real], real)
+    # converged at |H| <= tolerance, or at a Newton step within PROJECTION_STALL units of rounding of
+    # the dependent coordinates (H of large terms cannot reach an absolute tolerance; found by review)
+    body = [f"{real} H[{k}], HJ[{k * k}];", "int i, iteration, stalled = 0;",
             "for (iteration = 0; iteration <= 10; ++iteration) {",
-            f"    {real} size = {literal(0, real)};",
+            f"    {real} size = {literal(0, real)}, moved = {literal(0, real)}, magnitude = {literal(0, real)};",
             f"    {prefix}_configuration_terms(t, x, p, H, HJ);",
             f"    for (i = 0; i < {k}; ++i) {{",
             f"        if ({fabs}(H[i]) > size) size = {fabs}(H[i]);",
             "    }",
             "    if (!isfinite(size)) return LCG_NONFINITE_STATE;",
-            f"    if (size <= {tolerance}) return LCG_OK;",
+            f"    if (size <= {tolerance} || stalled) return LCG_OK;",
             "    if (iteration == 10) return LCG_NEWTON_FAILED;",
             f"    if (!{prefix}_dense_solve(HJ, H, {k}, 1, {literal(0, w.real)}, 0)) return LCG_SINGULAR_CONSTRAINTS;"]
     body += [f"    x[{d}] -= H[{j}];" for j, d in enumerate(dependent)]
-    body += ["}", "return LCG_NEWTON_FAILED;"]
+    body += [f"    if ({fabs}(H[{j}]) > moved) moved = {fabs}(H[{j}]);" for j in range(k)]
+    body += [f"    if ({fabs}(x[{d}]) > magnitude) magnitude = {fabs}(x[{d}]);" for d in dependent]
+    body += [f"    stalled = moved <= {stall} * magnitude;", "}", "return LCG_NEWTON_FAILED;"]
     names = ", ".join(w.system.q[d].name for d in dependent)
     return record("int", f"{prefix}_project", f"{real} t, {real} *x, const {real} *p",
                   f"Project x onto Kane's configuration constraints: Newton in the dependent coordinates ({names}), "

@@ -13,7 +13,7 @@ import jinja2
 import sympy as sp
 
 from ..status import STATUS_TABLE
-from .csyntax import EmitError, comment_text, literal
+from .csyntax import PROJECTION_STALL, UNIT_ROUNDOFF, EmitError, comment_text, literal
 from .kernel_text import KernelWriter, Names, names_for
 from .lane_kernel import lane_context
 from .outputs import OUTPUTS, support_functions
@@ -305,6 +305,8 @@ def _context(system: ReducedSystem, names: Names, layout: KernelLayout, function
         "n_constraint_matrix": system.n_constraints * n, "n_constraints_squared": system.n_constraints ** 2,
         "has_constraint_terms": "constraints" in system.outputs,
         "constraint_tolerance": literal(1e-12 if real == "double" else 1e-6, real),
+        "projection_stall": literal(PROJECTION_STALL * UNIT_ROUNDOFF[real], real),
+        "projection_stall_text": f"{PROJECTION_STALL:g}",
         "projection_iterations": 10, "n_residuals": 2 * system.n_constraints,
         "n_multiplier_values": system.n_constraints + n,
         "rank_tolerance": literal(1e-12 if real == "double" else 1e-6, real),
