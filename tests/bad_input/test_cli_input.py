@@ -106,6 +106,9 @@ def test_bad_argument_is_one_line_naming_the_culprit(argv, culprits, capsys, tmp
     ("x = 1", ["bad_model.py", "must define"]),
     ("model = 42", ["bad_model.py", "must define"]),
     ("def build_model(:\n", ["bad_model.py", "SyntaxError"]),
+    # found by review: the command exited with the file's code (0: success, nothing done)
+    ("import sys\nsys.exit(0)", ["bad_model.py", "sys.exit(0)"]),
+    ("import sys\nsys.exit(7)", ["bad_model.py", "sys.exit(7)"]),
 ])
 def test_broken_model_file_is_named(content, culprits, tmp_path, capsys):
     path = tmp_path / "bad_model.py"

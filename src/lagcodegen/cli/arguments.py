@@ -378,6 +378,9 @@ def load_model(spec: str):
         model = namespace.get("model")
         if model is None and callable(namespace.get("build_model")):
             model = namespace["build_model"]()
+    except SystemExit as error:  # found by review: sys.exit(0) in the file ended the command, exit 0, nothing done
+        raise UsageError(f"model file {path} called sys.exit({error.code!r}) instead of defining `model` or "
+                         "`build_model()`") from error
     except Exception as error:  # the user's own code, whatever it raises: name the file and the error
         raise UsageError(f"model file {path} failed: {type(error).__name__}: {error}") from error
     if not isinstance(model, Model):
