@@ -207,6 +207,12 @@ def check_consistent_x0(eom, x0: dict, values: dict) -> None:
                          "consistent state")
 
 
+def _has_energy(eom) -> bool:
+    """An energy expression, or a recursive tree's own (found by review: the command line said a
+    tree "has no energy expression", where the API records it)."""
+    return eom.energy is not None or (eom.tree is not None and eom.tree.energy is not None)
+
+
 def compile_for(eom, method: str, fixed: dict, *, energy: bool, points: bool):
     """The model compiled with one integrator and only the outputs the run records (the outputs
     the method needs, such as the Jacobian, are added by `compile_model`)."""
@@ -214,7 +220,7 @@ def compile_for(eom, method: str, fixed: dict, *, energy: bool, points: bool):
     from ..native.build import BuildError
     from ..pipeline import compile_model
 
-    outputs = ["rhs"] + ["energy"] * (energy and eom.energy is not None) + ["points"] * (points and bool(eom.points))
+    outputs = ["rhs"] + ["energy"] * (energy and _has_energy(eom)) + ["points"] * (points and bool(eom.points))
     outputs += ["measurements"] * bool(eom.measurements)
     # residuals, multipliers, --project: for constraints with multipliers only (found by review: a
     # model with eliminated dependent speeds was refused, "output 'constraints' needs multipliers")
@@ -253,7 +259,7 @@ def cmd_simulate(args) -> int:
     check_output_file(args.plot, "--plot", "figure")
     eom, fixed, params, x0 = prepare_run(args, "simulate")
     steps = check_steps(args, eom.n_state + bool(args.energy))
-    if args.energy and eom.energy is None:
+    if args.energy and not _has_energy(eom):
         raise UsageError(f"--energy: model {eom.name!r} has no energy expression")
     start = time.perf_counter()
     system = compile_for(eom, args.method, fixed, energy=args.energy, points=True)
@@ -322,7 +328,7 @@ def check_sweep_outputs(args, members: dict, eom) -> str:
         resolve_field(field, coordinates, coordinates + [u.name for u in eom.u])
     except ValueError as error:
         raise UsageError(f"--field: {error}") from None
-    if field == "energy_error" and eom.energy is None:
+    if field == "energy_error" and not _has_energy(eom):
         raise UsageError(f"--field energy_error: model {eom.name!r} has no energy expression")
     if args.heatmap:
         if len(members) != 2:
