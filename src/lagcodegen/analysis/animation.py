@@ -145,7 +145,8 @@ def animate(trajectory: Trajectory, out=None, *, points: Sequence[str] | None = 
         The points to draw (default: all).
     links : sequence of (str, str), optional
         Pairs of point names joined by a segment, ``"origin"`` the fixed origin; pass the
-        model's ``Model.links``. Default: the chain origin -> first point -> second -> ...
+        model's ``Model.links or None`` (an empty sequence draws no segment). Default (None): the
+        chain origin -> first point -> second -> ...
     trace : sequence of str
         Points whose path up to the current frame is drawn.
     fps : float
