@@ -20,7 +20,7 @@ from lagcodegen.cli.commands import main
 
 RUN = ["--t-end", "0.5", "--h", "1e-3"]
 DP = ["double_pendulum", *RUN, "--x0", "q1=1,q2=0.5"]
-COMMANDS = ("examples", "demo", "derive", "emit", "simulate", "sweep")
+COMMANDS = ("examples", "demo", "derive", "emit", "simulate", "sweep", "animate")
 
 
 @pytest.fixture(autouse=True)
@@ -210,3 +210,36 @@ def test_interrupt_exits_130_quietly(monkeypatch, capsys):
     monkeypatch.setattr(commands, "cmd_derive", interrupted)
     assert main(["derive", "double_pendulum"]) == 130
     assert "Traceback" not in capsys.readouterr().err
+
+
+def test_late_found_arguments_are_refused_before_compiling(tmp_path, capsys, monkeypatch):
+    """Found by review: a repeated --grid value with --heatmap was refused after the whole sweep ran,
+    an --speed too small for the frame limit after the simulation, and an --input table that
+    cannot be read after the compile. Now each is one line before anything is compiled: the
+    compiler is replaced by one that fails the test if called."""
+    import lagcodegen.cli.runs as runs
+    import lagcodegen.cli.scenes as scenes
+
+    def no_compile(*args, **kwargs):
+        raise AssertionError("compiled before the bad argument was refused")
+
+    monkeypatch.setattr(runs, "compile_for", no_compile)
+    monkeypatch.setattr(scenes, "compile_for", no_compile)
+    model_file = tmp_path / "driven.py"
+    model_file.write_text(
+        "import sympy as sp, sympy.physics.mechanics as me\nfrom lagcodegen import Model\n"
+        "x, F = me.dynamicsymbols('x F'); m, k = sp.symbols('m k', positive=True)\n"
+        "model = Model('driven', [x], [m, k], kinetic_energy=m * x.diff()**2 / 2, potential_energy=k * x**2 / 2,\n"
+        "              generalized_forces={x: F}, inputs=[F], parameter_values={'m': 1.0, 'k': 4.0})\n")
+    cases = [
+        (["sweep", "double_pendulum", "--grid", "m2=0.5,1,0.5", "--grid", "l2=1,2", "--x0", "q1=1,q2=0",
+          "--t-end", "0.5", "--h", "1e-3", "--heatmap", tmp_path / "map.png"], ["--heatmap", "'m2'", "repeats 0.5"]),
+        (["animate", "double_pendulum", "--x0", "q1=1,q2=0.5", "--t-end", "1", "--speed", "1e-4",
+          "--out", tmp_path / "scene.gif"], ["speed 0.0001", "frames"]),
+        (["simulate", model_file, "--x0", "x=0", "--t-end", "1", "--h", "1e-3", "--input",
+          f"F={tmp_path / 'no_such_table.csv'}"], ["--input F", "no_such_table.csv"]),
+    ]
+    for argv, culprits in cases:
+        message = one_line_error(argv, capsys)
+        for culprit in culprits:
+            assert culprit in message, (culprit, message)

@@ -261,6 +261,7 @@ def cmd_simulate(args) -> int:
     steps = check_steps(args, eom.n_state + bool(args.energy))
     if args.energy and not _has_energy(eom):
         raise UsageError(f"--energy: model {eom.name!r} has no energy expression")
+    inputs = parse_inputs(args.input)  # found by review: a table that cannot be read was found after the compile
     start = time.perf_counter()
     system = compile_for(eom, args.method, fixed, energy=args.energy, points=True)
     compile_time, start = time.perf_counter() - start, time.perf_counter()
@@ -269,7 +270,7 @@ def cmd_simulate(args) -> int:
         run = interruptible(lambda: simulate(
             system, x0, args.t_end, args.h, args.method, params=params, stride=args.stride, energy=args.energy,
             points=bool(system.layout.points), project=args.project, residuals=constrained,
-            multipliers=constrained, inputs=parse_inputs(args.input), hold=args.hold))
+            multipliers=constrained, inputs=inputs, hold=args.hold))
     except InputError as error:
         raise UsageError(f"--input: {error}") from None
     elapsed = time.perf_counter() - start
@@ -333,12 +334,18 @@ def check_sweep_outputs(args, members: dict, eom) -> str:
     if args.heatmap:
         if len(members) != 2:
             raise UsageError(f"--heatmap needs exactly two swept names, got {', '.join(members)}")
+        import numpy as np
         if args.table:
-            import numpy as np
             try:
                 product_axes(np.column_stack(list(members.values())), list(members))
             except ValueError as error:
                 raise UsageError(f"--heatmap: {error}") from None
+        else:  # found by review: a repeated grid value was refused only after the whole sweep ran
+            for name, axis in members.items():
+                values, counts = np.unique(np.asarray(axis, dtype=float), return_counts=True)
+                if (counts > 1).any():
+                    raise UsageError(f"--heatmap: grid axis {name!r} repeats {float(values[counts > 1][0])!r}: a "
+                                     "heatmap cell per value; drop the repeat")
     return field
 
 

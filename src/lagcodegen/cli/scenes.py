@@ -66,7 +66,7 @@ def animation_request(args) -> tuple:
     import numpy as np
 
     from ..analysis.animation import check_output
-    from ..analysis.scenes import AnimationError, frame_interval, project, scene_names
+    from ..analysis.scenes import AnimationError, frame_interval, frame_samples, project, scene_names
 
     try:
         target = check_output(args.out, "--out")
@@ -84,10 +84,14 @@ def animation_request(args) -> tuple:
     try:
         scene_names(tuple(model.points), request["points"], request["links"], request["trace"], prefix="--")
         project(np.zeros(3), request["projection"])
-        frame_interval(args.fps, target.suffix.lower() == ".gif")  # before anything runs
+        interval = frame_interval(args.fps, target.suffix.lower() == ".gif")  # before anything runs
     except AnimationError as error:
         message = str(error)
         raise UsageError(message if message.startswith("--") else f"--{message}") from None
+    try:  # the frame count too (found by review: --speed 1e-4 was refused after the simulation)
+        frame_samples(np.array([0.0, float(args.t_end)]), interval, args.speed)
+    except AnimationError as error:
+        raise UsageError(f"--speed: {error}") from None
     return model, target, request
 
 
@@ -111,11 +115,12 @@ def cmd_animate(args) -> int:
     eom, fixed, params, x0 = prepare_run(args, "animate", model=model)
     check_steps(args, 2 * eom.n + 1 + 3 * len(eom.points))
     energy = eom.energy is not None
+    inputs = parse_inputs(args.input)  # a table that cannot be read, before the compile
     system = compile_for(eom, args.method, fixed, energy=energy, points=True)
     try:
         run = interruptible(lambda: simulate(
             system, x0, args.t_end, args.h, args.method, params=params, stride=args.stride, energy=energy,
-            points=True, project=args.project, inputs=parse_inputs(args.input), hold=args.hold))
+            points=True, project=args.project, inputs=inputs, hold=args.hold))
     except InputError as error:
         raise UsageError(f"--input: {error}") from None
     print(f"{eom.name}, {run.method}, h = {args.h:g} to t = {args.t_end:g}: {run.message}")
