@@ -464,3 +464,20 @@ def test_the_command_line_records_a_recursive_trees_energy(tmp_path, capsys):
     assert main(["sweep", str(model_file), "--grid", "m1=1,2", "--x0", x0, "--t-end", "0.1", "--h", "1e-3",
                  "--field", "energy_error"]) == 0
     assert "energy_error" in capsys.readouterr().out
+
+
+def test_the_command_line_animates_a_tree(tmp_path, capsys):
+    """Found by review: `lagcodegen animate` looked at Model.points, which a tree leaves empty (its
+    points are its links'), refused every tree, and advised Model(points=...), which a tree refuses."""
+    from PIL import Image
+
+    from lagcodegen.cli.commands import main
+
+    model_file = tmp_path / "tree_model.py"
+    model_file.write_text("from lagcodegen import catalog\nmodel = catalog.pendulum_chain(3, route='tree')\n")
+    out = tmp_path / "chain.gif"
+    assert main(["animate", str(model_file), "--x0", "q1=1,q2=0.5,q3=0", "--t-end", "0.4", "--trace", "bob3",
+                 "--out", str(out)]) == 0
+    assert "wrote" in capsys.readouterr().out
+    with Image.open(out) as gif:
+        assert gif.n_frames == 11  # 0.4 s at 25 frames per second, both ends

@@ -73,16 +73,17 @@ def animation_request(args) -> tuple:
     except AnimationError as error:
         raise UsageError(str(error)) from None
     model = load_model(args.model)
-    if not model.points:
+    names = (*model.points, *model.tree_points())  # found by review: a tree's Link points were not seen
+    if not names:
         raise UsageError(f"model {model.name!r} has no named points to animate; give it some, "
-                         "Model(..., points={name: position})")
+                         "Model(..., points={name: position}) or Link(..., points=...)")
     request = {"points": None if args.points is None else [name.strip() for name in args.points.split(",")],
                "links": parse_links(args.links) or model.links or None,
                "trace": [] if args.trace is None else [name.strip() for name in args.trace.split(",")],
                "projection": parse_projection(args.projection), "fps": args.fps, "speed": args.speed,
                "frames": model if draws_frames(model, getattr(args, "frames", None)) else None}
     try:
-        scene_names(tuple(model.points), request["points"], request["links"], request["trace"], prefix="--")
+        scene_names(names, request["points"], request["links"], request["trace"], prefix="--")
         project(np.zeros(3), request["projection"])
         interval = frame_interval(args.fps, target.suffix.lower() == ".gif")  # before anything runs
     except AnimationError as error:
