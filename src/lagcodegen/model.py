@@ -605,6 +605,12 @@ def check_well_defined(what: str, expr: sp.Basic) -> None:
     if accelerations:
         raise ModelError(f"{what} contains the acceleration {accelerations[0]}: energies, forces and "
                          "positions may depend on coordinates, speeds and t only")
+    # a constant that is complex without an I atom (found by review: (-1)**(1/3) is 0.5 + 0.866 I in
+    # sympy, printed as cbrt(-1) = -1 in C, so the kernel ran a different model with status OK)
+    for power in expr.atoms(sp.Pow):
+        if power.is_number and power.is_extended_real is False:
+            raise ModelError(f"{what} contains the complex constant {power} = {sp.N(power, 6)}: sympy takes the "
+                             "principal root of a negative number; write the real value (e.g. -1 for (-1)**(1/3))")
 
 
 def finite_number(value: Any, what: str) -> float:

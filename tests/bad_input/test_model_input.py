@@ -59,6 +59,19 @@ def test_energies_route_refuses_undefined_values(field, build, label, value):
         oscillator(**{field: build(value)})
 
 
+@pytest.mark.parametrize("field, build", [
+    ("potential_energy", lambda bad: bad * k * x ** 2),
+    ("generalized_forces", lambda bad: {x: -c * xd * bad}),
+], ids=["V", "Q"])
+@pytest.mark.parametrize("value", [(-1) ** sp.Rational(1, 3), sp.Integer(-8) ** sp.Rational(1, 3)], ids=["-1", "-8"])
+def test_a_complex_constant_without_i_is_refused(field, build, value):
+    """Found by review: (-1)**(1/3) is 0.5 + 0.866 I in sympy (principal root; no I atom), and the C
+    printer wrote cbrt(-1) = -1: the kernel ran another model with status OK."""
+    assert value.is_extended_real is False  # the premise: sympy's value is complex
+    with raises_naming(field if field == "potential_energy" else "generalized force", "complex constant"):
+        oscillator(**{field: build(value)})
+
+
 @pytest.mark.parametrize("value", [sp.nan, sp.zoo, sp.oo], ids=["nan", "zoo", "oo"])
 def test_undefined_value_times_zero_is_refused(value):
     # 0*nan, 0*zoo and 0*oo are all nan in sympy: V = 0*nan used to become a free spring-less model.
