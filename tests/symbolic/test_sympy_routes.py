@@ -457,3 +457,20 @@ def test_a_body_whose_inertia_changes_is_refused_on_the_bodies_route():
     skater = me.RigidBody("skater", O, B, 1, (me.inertia(B, 1, 1, i0 / (1 + a * me.dynamicsymbols._t)), O))
     with pytest.raises(ModelError, match="the central inertia of body 'skater' changes with t"):
         derive_equations(Model("skater", [theta], [i0, a], bodies=[skater], frame=N, origin=O))
+
+
+def test_a_mass_that_changes_only_past_the_sample_points_is_refused():
+    """Found by review: m0 (1 + Max(0, t - 3)) is constant where the guard sampled it (t = -1.3,
+    0.4, 2.2), and the bodies route integrated m(t) x'' = -k x, dropping m' x' (x(8) 1.14 against
+    0.435 from d/dt(m x') = -k x). A piecewise function of t or q in a mass is now a change."""
+    from lagcodegen import ModelError
+
+    x = me.dynamicsymbols("x")
+    m0, k = sp.symbols("m0 k", positive=True)
+    N, O = me.ReferenceFrame("N"), me.Point("O")
+    O.set_vel(N, 0)
+    P = O.locatenew("P", x * N.x)
+    particle = me.Particle("p", P, m0 * (1 + sp.Max(0, me.dynamicsymbols._t - 3)))
+    with pytest.raises(ModelError, match="the mass of body 'p' changes with t"):
+        derive_equations(Model("m_max", [x], [m0, k], bodies=[particle], frame=N, origin=O,
+                               potential_energy=k * x ** 2 / 2))
