@@ -134,7 +134,8 @@ def _check_constant(model: Model, body, what: str, value, moving: set) -> None:
 
 #: functions whose pieces sample points can miss: a mass or inertia holding one of them over the
 #: symbol is taken as changing with it (found by review: m0 (1 + Max(0, t - 3)) passed the samples
-#: at t = -1.3, 0.4 and 2.2, and the route dropped m' x')
+#: at t = -1.3, 0.4 and 2.2, and the route dropped m' x'; wider samples, t = 31, wrongly found the
+#: bicycle's spinning wheel's inertia changing with its angle, and were dropped)
 _PIECEWISE = (sp.Max, sp.Min, sp.Piecewise, sp.Heaviside, sp.Abs, sp.sign, sp.floor, sp.ceiling, sp.Mod)
 
 
@@ -150,7 +151,7 @@ def _numerically_constant(value: sp.Matrix, symbol) -> bool:
     for _ in range(2):
         point = {s: sp.Float(rng.uniform(0.3, 1.7)) for s in others}
         base = value.xreplace(point)
-        samples = [base.xreplace({symbol: sp.Float(v)}).evalf(30) for v in (-1.3, 0.4, 2.2, -9.7, 31.0)]
+        samples = [base.xreplace({symbol: sp.Float(v)}).evalf(30) for v in (-1.3, 0.4, 2.2)]
         scale = max((abs(e) for e in samples[0]), default=sp.S.Zero) + 1
         for other in samples[1:]:
             if any(abs(a - b) > sp.Float("1e-20") * scale for a, b in zip(samples[0], other)):
