@@ -50,6 +50,14 @@ def _tolerance(layout, tolerance) -> float | None:
 CONFIGURATION_SAMPLES = 200
 
 
+def configuration_offset(n_q: int, project_at, t: float, state) -> tuple:
+    """(status, |move| of each of the n_q coordinates): ``project_at(t, copy)`` puts a copy of
+    ``state`` onto Kane's configuration constraints in place; how far that moved the coordinates."""
+    moved = np.array(state, copy=True)
+    code = project_at(t, moved)
+    return code, np.abs(moved[:n_q] - np.asarray(state)[:n_q]).astype(np.float64)
+
+
 def warn_if_configuration_drifted(layout, trajectory, project_at, tolerance) -> bool:
     """Warn (`ConstraintDriftWarning`, and return True) when a run of a model with Kane's
     configuration constraints (an eliminated build, whose C ``_project`` solves them for the
@@ -67,9 +75,7 @@ def warn_if_configuration_drifted(layout, trajectory, project_at, tolerance) -> 
         state = np.array(trajectory.x[k])
         if not np.all(np.isfinite(state)):
             break
-        before = state.copy()
-        code = project_at(float(trajectory.t[k]), state)
-        off = np.abs(state[:layout.n_q] - before[:layout.n_q]).astype(np.float64)
+        code, off = configuration_offset(layout.n_q, project_at, float(trajectory.t[k]), state)
         if code != 0 or not float(off.max(initial=0.0)) <= tolerance:
             detail = "no configuration near it" if code != 0 else \
                 f"{layout.coordinates[int(np.argmax(off))]} is {off.max():.3g} from where they put it"

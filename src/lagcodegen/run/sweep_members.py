@@ -180,7 +180,7 @@ def _check_configuration_ends(system: CompiledSystem, x_final, ps, t_end: float,
     simulate): members that ended OK with a dependent coordinate more than the drift tolerance from
     where the constraints put it (found by review: a Kane four-bar swept for 500 s opened its loop
     by 2.6e-4 with status OK and no word, where simulate warned)."""
-    from .drift import DRIFT_TOLERANCE
+    from .drift import DRIFT_TOLERANCE, configuration_offset
     from .simulate import Status, c_pointer, real_dtype
 
     layout = system.layout
@@ -191,12 +191,11 @@ def _check_configuration_ends(system: CompiledSystem, x_final, ps, t_end: float,
     for i, (x, p) in enumerate(zip(x_final, ps)):
         if status[i] != Status.OK:
             continue
-        state = np.array(x, dtype=real_dtype(system))
         parameters = np.ascontiguousarray(p[:n_p], dtype=real_dtype(system))
-        code = project(t_end, c_pointer(system, state), c_pointer(system, parameters))
-        moved = float(np.max(np.abs(state[:layout.n_q] - np.asarray(x[:layout.n_q])), initial=0.0))
-        if code != 0 or not moved <= tolerance:
-            off.append((i, np.inf if code != 0 else moved))
+        code, moved = configuration_offset(layout.n_q, lambda t, state, parameters=parameters: project(
+            t, c_pointer(system, state), c_pointer(system, parameters)), t_end, np.array(x, dtype=real_dtype(system)))
+        if code != 0 or not moved.max(initial=0.0) <= tolerance:
+            off.append((i, np.inf if code != 0 else float(moved.max(initial=0.0))))
     _warn_off(off, f"of model {layout.model!r} drifted off the configuration constraints (a dependent coordinate "
                    f"more than {tolerance:g} from where they put it at the end)", "sweep with project=True or a "
                    "smaller h", columns, values)
