@@ -333,3 +333,12 @@ def test_a_constraint_with_a_kink_is_named():
                   potential_energy=m * g * y, constraints=[sp.Abs(x) + y - length])
     with pytest.raises(ModelError, match=r"constraint 0 \(-l \+ y \+ Abs\(x\)\) is not smooth: .* DiracDelta\(x\)"):
         derive_equations(model)
+
+
+def test_a_step_in_the_potential_is_named_before_the_printer():
+    """Found by review: V = k x Heaviside(x - 1) jumps by k at x = 1; its derivative holds
+    DiracDelta(x - 1), and the C printer refused it naming only F[0] and a CSE temporary. Now the
+    derivation names the delta and the step. A kink (V = k |x|, a force jump) stays accepted."""
+    with raises_naming("generalized force along x_d", "DiracDelta(x - 1)", "step"):
+        derive_equations(oscillator(potential_energy=k * x * sp.Heaviside(x - 1)))
+    assert derive_equations(oscillator(potential_energy=k * sp.Abs(x))).forcing[0] != 0

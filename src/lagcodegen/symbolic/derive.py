@@ -17,6 +17,8 @@ equations object, symbols, assembly) are in `equations`.
 """
 from __future__ import annotations
 
+import sympy as sp
+
 from ..model import ROUTE_BODIES, ROUTE_ENERGIES, ROUTE_SYMPY, ROUTE_TREE, Model, ModelError
 from .bodies import derive_from_bodies
 from .energies import derive_from_energies
@@ -59,6 +61,13 @@ def derive_equations(model: Model) -> EquationsOfMotion:
         raise ModelError(f"model {model.name!r} has the route {model.route!r}, which no derivation "
                          f"serves (routes: {', '.join(ROUTES)})") from None
     eom = route(model)
+    for i, force in enumerate(eom.forcing):  # the printer named only F[i] and a CSE temporary (found by review)
+        deltas = sorted(map(str, sp.sympify(force).atoms(sp.DiracDelta)))
+        if deltas:
+            raise ModelError(f"model {model.name!r}: the generalized force along {eom.u[i]} holds {deltas[0]}, the "
+                             "derivative of a step in the potential or kinetic energy, the dissipation or a force "
+                             "(Heaviside, sign or Abs of a coordinate); its impulse cannot be integrated: write it "
+                             "without the step")
     speeds = {s.name for s in eom.u}
     for name, _ in eom.measurements:  # a trajectory's columns are looked up by name
         if name in speeds:
