@@ -61,7 +61,8 @@ def derive_equations(model: Model) -> EquationsOfMotion:
         raise ModelError(f"model {model.name!r} has the route {model.route!r}, which no derivation "
                          f"serves (routes: {', '.join(ROUTES)})") from None
     eom = route(model)
-    for i, force in enumerate(eom.forcing):  # the printer named only F[i] and a CSE temporary (found by review)
+    for i, force in enumerate(eom.forcing if eom.forcing is not None else ()):  # a recursive tree has none
+        # the printer named only F[i] and a CSE temporary (found by review)
         deltas = sorted(map(str, sp.sympify(force).atoms(sp.DiracDelta)))
         if deltas:
             raise ModelError(f"model {model.name!r}: the generalized force along {eom.u[i]} holds {deltas[0]}, the "
