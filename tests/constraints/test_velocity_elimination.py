@@ -328,9 +328,10 @@ def test_a_steady_turn_of_the_eliminated_disc_is_the_multipliers_ones_and_is_hel
 
 
 def test_the_dynamics_kernel_solves_the_dependent_speeds_from_its_own_constraint_jacobian():
-    """One evaluation of A per right-hand side: the dynamics kernel solves A_D u_dep = -(A_I u_I + b)
-    from the A it forms anyway, between its temporaries that do not read u_dep and those that do (a
-    call of the public dependent_speeds function would form A a second time). Its values are
+    """One evaluation of A and one LU of A_D per right-hand side: the dynamics kernel solves
+    A_D u_dep = -(A_I u_I + b) from the A it forms anyway, between its temporaries that do not read
+    u_dep and those that do (a call of the public dependent_speeds function would form A a second
+    time), and the accelerations' A_D^-1 gamma substitutes with the same factors. Its values are
     checked against the disc's sympy model by the tests above."""
     from lagcodegen.codegen.reduce import reduce_expressions
     from lagcodegen.codegen.render import render_sources
@@ -341,15 +342,18 @@ def test_the_dynamics_kernel_solves_the_dependent_speeds_from_its_own_constraint
     start = source.index("_dynamics(double t")
     body = source[start:source.index("\n}\n", start)]
     assert "_dependent_speeds(" not in body
-    solve, first_reader = body.index("_dense_solve(AD_dep, u_dep"), body.index("= u_dep[0];")
+    solve, first_reader = body.index("_dense_factor(LU, ipiv"), body.index("= u_dep[0];")
     assert solve < first_reader
+    assert body.count("_dense_factor(") == 1 and "_dense_solve(" not in body
+    assert body.index("_dense_substitute(LU, ipiv, gD") > first_reader
     for name in eom.u[eom.n_u - eom.n_dependent:]:  # no temporary reads a dependent speed before the solve
         assert f"*{name}" not in body[:solve] and f"{name}*" not in body[:solve]
 
 
-@pytest.mark.parametrize("name", ("AD_dep", "scale_dep", "u_dep"))
+@pytest.mark.parametrize("name", ("AD_dep", "scale_dep", "u_dep", "LU", "ipiv", "X", "gD", "Mr_1_0", "MC_2_0",
+                                  "rest_2", "Fr_1", "D_0"))
 def test_a_symbol_named_like_the_kernels_own_locals_is_renamed(sleighs, tmp_path, name):
-    """The inline solve's locals (AD_dep, scale_dep, u_dep) are reserved: a sleigh whose lever arm
+    """The inline solve's locals (u_dep, LU, the reduced M's Mr_i_j, ...) are reserved: a sleigh whose lever arm
     is called so compiles, and its rhs equals the sleigh's with the usual name (second route: the
     same model; a BuildError 'conflicting type qualifiers' before the names were reserved)."""
     renamed = sleigh(arm=name, dependent_speeds=[Y])

@@ -31,7 +31,19 @@ RESERVED = {"t", "x", "p", "out", "M", "F", "ud", "qd", "xdot", "B", "J", "c", "
 #: names of the other models' symbols do not change)
 DRIVEN_RESERVED = {"r", "dr", "rs", "r0", "r1", "y", "Fx", "Fr", "Jr", "Br", "hold", "inputs", "context"}
 #: ... and those of the functions of a model whose dependent speeds are eliminated
-DEPENDENT_RESERVED = {"u_dep", "dep_status", "AD", "b", "Mfull", "Fvec", "gamma", "AD_dep", "scale_dep"}
+DEPENDENT_RESERVED = {"u_dep", "dep_status", "AD", "b", "Mfull", "Fvec", "gamma", "AD_dep", "scale_dep", "LU",
+                      "ipiv", "X", "gD"}
+
+
+def _reduced_locals(n: int) -> set:
+    """Locals of the eliminated dynamics' reduction to the independent speeds (M C, C^T M C, the
+    reduced forcing)."""
+    names = set()
+    for j in range(n):
+        names |= {f"rest_{j}", f"Fr_{j}"}
+        for k in range(n):
+            names |= {f"MC_{j}_{k}", f"Mr_{j}_{k}"}
+    return names
 
 
 @dataclass(frozen=True)
@@ -64,7 +76,7 @@ def names_for(system: ReducedSystem, model_name: str) -> Names:
     if system.inputs or system.measurements:
         taken |= DRIVEN_RESERVED
     if system.u_dependent or system.reactions:
-        taken |= DEPENDENT_RESERVED | {"RJ"}
+        taken |= DEPENDENT_RESERVED | {"RJ"} | _reduced_locals(len(system.u) + len(system.u_dependent))
     temporaries = [s for k in system.kernels for s, _ in k.temporaries]
     symbols = {}
     for s in dict.fromkeys(temporaries):  # cse names first: tmp0, tmp1, ...
@@ -159,7 +171,7 @@ class KernelWriter:
         in ``u_dep`` from the kernel's own temporaries, run after the temporaries that do not read
         them (in place of a call of ``<prefix>_dependent_speeds``)."""
         index = self.names.dependent_index or {}
-        split = dependent_solve is not None and any(s in kernel.symbols for s in index)
+        split = dependent_solve is not None
         inputs, unused = self._input_lines(kernel, reads_inputs)
         if touches_state and "x" in unused:
             unused.remove("x")

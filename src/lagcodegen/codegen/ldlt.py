@@ -19,8 +19,9 @@ def _minus_terms(pairs) -> str:
 
 
 def ldlt_factor_lines(n: int, nonzero: set, real: str, failure: str = "LCG_SINGULAR_MASS_MATRIX",
-                      flag: str | None = None) -> tuple[list, set]:
-    """Unrolled LDL^T factorization of the symmetric M held in locals M_j_k (j >= k).
+                      flag: str | None = None, matrix: str = "M") -> tuple[list, set]:
+    """Unrolled LDL^T factorization of the symmetric M held in locals M_j_k (j >= k; ``matrix``
+    names another stem, Mr_j_k for Kane's reduced mass matrix).
 
     Structural zeros of M are skipped. A pivot that is not positive (or NaN) returns
     ``failure`` (default LCG_SINGULAR_MASS_MATRIX), so a singular M never produces NaNs
@@ -31,11 +32,11 @@ def ldlt_factor_lines(n: int, nonzero: set, real: str, failure: str = "LCG_SINGU
     is nonzero.
     """
     zero, one = _literal(0, real), _literal(1, real)
-    lines = [f"/* Factor M = L D L^T: unrolled ({n} x {n}) */"]
+    lines = [f"/* Factor {matrix} = L D L^T: unrolled ({n} x {n}) */"]
     LD: set = set()  # (i, k) with LD_i_k = L_i_k * D_k nonzero
     for j in range(n):
         pivot = _minus_terms((f"L_{j}_{k}", f"LD_{j}_{k}") for k in range(j) if (j, k) in LD)
-        lines.append(f"const {real} D_{j} = M_{j}_{j}{pivot};")
+        lines.append(f"const {real} D_{j} = {matrix}_{j}_{j}{pivot};")
         lines.append(f"if (!(D_{j} > {zero})) return {failure};" if flag is None
                      else f"{flag} = D_{j} > {zero} ? {flag} : {one};")
         lines.append(f"const {real} Dinv_{j} = {one} / D_{j};")
@@ -43,7 +44,7 @@ def ldlt_factor_lines(n: int, nonzero: set, real: str, failure: str = "LCG_SINGU
             pairs = [(f"LD_{i}_{k}", f"L_{j}_{k}") for k in range(j) if (i, k) in LD and (j, k) in LD]
             if (i, j) not in nonzero and not pairs:
                 continue
-            head = f"M_{i}_{j}" if (i, j) in nonzero else zero
+            head = f"{matrix}_{i}_{j}" if (i, j) in nonzero else zero
             lines.append(f"const {real} LD_{i}_{j} = {head}{_minus_terms(pairs)};")
             lines.append(f"const {real} L_{i}_{j} = LD_{i}_{j} * Dinv_{j};")
             LD.add((i, j))

@@ -721,12 +721,9 @@ def support_functions(w: KernelWriter) -> list:
     if any(o.checked for o in outputs):
         functions.append(_finite_result_function(w))
     if w.n_dependent or w.system.reactions or w.system.dependent_coordinates:
-        functions.append(_dense_solve_function(w))
+        functions += _dense_lu_functions(w)
     if w.system.dependent_coordinates:
         functions.append(_configuration_terms_function(w))
-    if w.n_dependent:
-        if any(o.kernel == "dynamics" for o in outputs):
-            functions.append(_eliminated_solve_function(w))
     if any(o.kernel == "dynamics" for o in outputs):
         functions += _dynamics_functions(w)
         if w.system.n_constraints and any(o.calls_dynamics for o in outputs):
@@ -740,121 +737,88 @@ def support_functions(w: KernelWriter) -> list:
     return functions
 
 
-def _dense_solve_function(w: KernelWriter) -> dict:
-    """LU with partial pivoting of a small dense A (n x n) against ``cols`` right-hand sides B
-    (row-major n x cols), both overwritten (B by the solution); 0 when a pivot is not above
-    rank_tolerance times the larger of ``scale`` and the largest |entry| of A (the dependent
-    speeds' Jacobian lost rank). det (or NULL) receives det(A): its sign change between two states
-    is a singular A crossed (the drivers' singularity monitor)."""
-    real, zero = w.real, literal(0, w.real)
+def _dense_lu_functions(w: KernelWriter) -> list:
+    """LU with partial pivoting of a small dense A (n x n), its substitution, and the solve of A X = B
+    built on the two. The dependent speeds' A_D is factored once per evaluation of the dynamics and
+    both its solves (the dependent speeds with Kane's C, and the accelerations' g_D) substitute. A
+    pivot not above rank_tolerance times the larger of ``scale`` and the largest |entry| of A is a
+    singular A (the dependent speeds' Jacobian lost rank); det(A), whose sign change between two
+    states is a singular A crossed, goes to the drivers' singularity monitor. U's diagonal is kept
+    as its reciprocal: the substitutions multiply (a division's latency on every row is most of a
+    3 x 3 solve's time)."""
+    real, zero, one, prefix = w.real, literal(0, w.real), literal(1, w.real), w.prefix
     tolerance = literal(1e-12 if real == "double" else 1e-6, real)
     fabs = "fabsf" if real == "float" else "fabs"
-    body = [f"{real} product = {literal(1, real)};", "int i, j, k, c;",
-            "for (i = 0; i < n * n; ++i) {",
-            f"    if ({fabs}(A[i]) > scale) scale = {fabs}(A[i]);",
-            "}",
-            f"if (!(scale > {zero}) || !isfinite(scale)) return 0;",
-            "for (k = 0; k < n; ++k) {",
-            "    int pivot = k;",
-            "    for (i = k + 1; i < n; ++i) {",
-            f"        if ({fabs}(A[i * n + k]) > {fabs}(A[pivot * n + k])) pivot = i;",
-            "    }",
-            f"    if (!({fabs}(A[pivot * n + k]) > {tolerance} * scale)) return 0;",
-            "    if (pivot != k) {",
-            "        product = -product;",
-            "        for (j = 0; j < n; ++j) {",
-            f"            const {real} swap = A[k * n + j];",
-            "            A[k * n + j] = A[pivot * n + j];",
-            "            A[pivot * n + j] = swap;",
-            "        }",
-            "        for (c = 0; c < cols; ++c) {",
-            f"            const {real} swap = B[k * cols + c];",
-            "            B[k * cols + c] = B[pivot * cols + c];",
-            "            B[pivot * cols + c] = swap;",
-            "        }",
-            "    }",
-            "    product *= A[k * n + k];",
-            "    for (i = k + 1; i < n; ++i) {",
-            f"        const {real} factor = A[i * n + k] / A[k * n + k];",
-            "        for (j = k + 1; j < n; ++j) A[i * n + j] -= factor * A[k * n + j];",
-            "        for (c = 0; c < cols; ++c) B[i * cols + c] -= factor * B[k * cols + c];",
-            "    }",
-            "}",
-            "for (k = n - 1; k >= 0; --k) {",
-            "    for (c = 0; c < cols; ++c) {",
-            f"        {real} acc = B[k * cols + c];",
-            "        for (j = k + 1; j < n; ++j) acc -= A[k * n + j] * B[j * cols + c];",
-            "        B[k * cols + c] = acc / A[k * n + k];",
-            "    }",
-            "}",
-            "if (det) *det = product;",
-            "return 1;"]
-    return record("int", f"{w.prefix}_dense_solve", f"{real} *A, {real} *B, int n, int cols, {real} scale, "
-                  f"{real} *det",
-                  "Solve A X = B in place (LU, partial pivoting); 0 when A is singular to rank_tolerance "
-                  "relative to the larger of scale and A's largest |entry|; det (or NULL) receives det(A).",
-                  body, hot=True)
-
-
-def _eliminated_solve_function(w: KernelWriter) -> dict:
-    """Kane's minimal equations from the unreduced ones: with A = [A_I A_D] (independent, dependent
-    columns), u = C u_I + c, C = [I; -A_D^-1 A_I], and ud = C ud_I + g, g = [0; A_D^-1 gamma] from
-    A ud = gamma: (C^T M C) ud_I = C^T (F - M g), by Cholesky (Kane and Levinson, Dynamics: Theory
-    and Applications, sec. 6.1; the reduced M is positive definite when M is on the null space of A)."""
-    real, prefix, zero = w.real, w.prefix, literal(0, w.real)
-    n, m, p = w.n_m, w.n_dependent, w.n_u
-    W = p + 1
-    fabs = "fabsf" if real == "float" else "fabs"
-    body = [f"{real} AD[{m * m}], X[{m * W}], MC[{n * p}], Mr[{p * p}], Fr[{p}], rest[{n}], scale = {zero}, det;",
-            "int i, j, k;",
-            "/* X = A_D^-1 [-A_I, gamma]: its first p columns are -A_D^-1 A_I, the last g_D; the rank",
-            " * test of A_D is relative to the largest |entry| of A */",
-            f"for (i = 0; i < {m}; ++i) {{",
-            f"    for (j = 0; j < {m}; ++j) AD[i * {m} + j] = A[i * {n} + {p} + j];",
-            f"    for (j = 0; j < {p}; ++j) {{",
-            f"        X[i * {W} + j] = -A[i * {n} + j];",
-            f"        if ({fabs}(A[i * {n} + j]) > scale) scale = {fabs}(A[i * {n} + j]);",
-            "    }",
-            f"    X[i * {W} + {p}] = gamma[i];",
-            "}",
-            f"if (!{prefix}_dense_solve(AD, X, {m}, {W}, scale, &det)) return LCG_SINGULAR_CONSTRAINTS;",
-            "/* rest = F - M g; MC = M C */",
-            f"for (i = 0; i < {n}; ++i) {{",
-            f"    {real} acc = F[i];",
-            f"    for (k = 0; k < {m}; ++k) acc -= M[i * {n} + {p} + k] * X[k * {W} + {p}];",
-            "    rest[i] = acc;",
-            f"    for (j = 0; j < {p}; ++j) {{",
-            f"        {real} sum = M[i * {n} + j];",
-            f"        for (k = 0; k < {m}; ++k) sum += M[i * {n} + {p} + k] * X[k * {W} + j];",
-            f"        MC[i * {p} + j] = sum;",
-            "    }",
-            "}",
-            "/* Mr = C^T M C, Fr = C^T rest */",
-            f"for (i = 0; i < {p}; ++i) {{",
-            f"    {real} acc = rest[i];",
-            f"    for (k = 0; k < {m}; ++k) acc += X[k * {W} + i] * rest[{p} + k];",
-            "    Fr[i] = acc;",
-            f"    for (j = 0; j < {p}; ++j) {{",
-            f"        {real} sum = MC[i * {p} + j];",
-            f"        for (k = 0; k < {m}; ++k) sum += X[k * {W} + i] * MC[({p} + k) * {p} + j];",
-            f"        Mr[i * {p} + j] = sum;",
-            "    }",
-            "}",
-            f"i = {prefix}_spd_factor(Mr, {p}, {zero});",
-            "if (i != 1) return i == 0 ? LCG_SINGULAR_MASS_MATRIX : LCG_NONFINITE_STATE;",
-            "if (gauge) {  /* pivots of the reduced M and det(A_D), for the drivers' singularity monitor */",
-            f"    for (i = 0; i < {p}; ++i) gauge[i] = Mr[i * {p} + i] * Mr[i * {p} + i];",
-            f"    gauge[{p}] = det;",
-            "}",
-            f"{prefix}_spd_solve(Mr, Fr, {p});",
-            f"for (i = 0; i < {p}; ++i) ud[i] = Fr[i];",
-            "return LCG_OK;"]
-    return record("int", f"{prefix}_eliminated_solve",
-                  f"const {real} *M, const {real} *F, const {real} *A, const {real} *gamma, {real} *ud, "
-                  f"{real} *gauge",
-                  f"ud of the {p} independent speeds from M ({n} x {n}), F, the constraint Jacobian A "
-                  f"({m} x {n}) and gamma (A ud = gamma); gauge (or NULL) receives the {p} pivots of "
-                  "C^T M C, then det(A_D).", body, static=True)
+    size = max(w.n_dependent, len(w.system.reactions), len(w.system.dependent_coordinates))
+    factor = [f"{real} product = {one};", "int i, j, k;",
+              "for (i = 0; i < n * n; ++i) {",
+              f"    if ({fabs}(A[i]) > scale) scale = {fabs}(A[i]);",
+              "}",
+              f"if (!(scale > {zero}) || !isfinite(scale)) return 0;",
+              "for (k = 0; k < n; ++k) {",
+              "    int pivot = k;",
+              "    for (i = k + 1; i < n; ++i) {",
+              f"        if ({fabs}(A[i * n + k]) > {fabs}(A[pivot * n + k])) pivot = i;",
+              "    }",
+              "    ipiv[k] = pivot;",
+              f"    if (!({fabs}(A[pivot * n + k]) > {tolerance} * scale)) return 0;",
+              "    if (pivot != k) {",
+              "        product = -product;",
+              "        for (j = 0; j < n; ++j) {",
+              f"            const {real} swap = A[k * n + j];",
+              "            A[k * n + j] = A[pivot * n + j];",
+              "            A[pivot * n + j] = swap;",
+              "        }",
+              "    }",
+              "    product *= A[k * n + k];",
+              f"    A[k * n + k] = {one} / A[k * n + k];",
+              "    for (i = k + 1; i < n; ++i) {",
+              f"        const {real} multiplier = A[i * n + k] * A[k * n + k];",
+              "        A[i * n + k] = multiplier;",
+              "        for (j = k + 1; j < n; ++j) A[i * n + j] -= multiplier * A[k * n + j];",
+              "    }",
+              "}",
+              "if (det) *det = product;",
+              "return 1;"]
+    substitute = ["int i, k, c;",
+                  "for (k = 0; k < n; ++k) {  /* the row exchanges of the factorization, in its order */",
+                  "    if (ipiv[k] != k) {",
+                  "        for (c = 0; c < cols; ++c) {",
+                  f"            const {real} swap = B[k * cols + c];",
+                  "            B[k * cols + c] = B[ipiv[k] * cols + c];",
+                  "            B[ipiv[k] * cols + c] = swap;",
+                  "        }",
+                  "    }",
+                  "}",
+                  "for (k = 0; k < n; ++k) {",
+                  "    for (i = k + 1; i < n; ++i) {",
+                  "        for (c = 0; c < cols; ++c) B[i * cols + c] -= LU[i * n + k] * B[k * cols + c];",
+                  "    }",
+                  "}",
+                  "for (k = n - 1; k >= 0; --k) {",
+                  "    for (c = 0; c < cols; ++c) {",
+                  f"        {real} acc = B[k * cols + c];",
+                  "        for (i = k + 1; i < n; ++i) acc -= LU[k * n + i] * B[i * cols + c];",
+                  "        B[k * cols + c] = acc * LU[k * n + k];",
+                  "    }",
+                  "}"]
+    solve = [f"int ipiv[{size}];",
+             f"if (!{prefix}_dense_factor(A, ipiv, n, scale, det)) return 0;",
+             f"{prefix}_dense_substitute(A, ipiv, B, n, cols);",
+             "return 1;"]
+    return [record("int", f"{prefix}_dense_factor", f"{real} *A, int *ipiv, int n, {real} scale, {real} *det",
+                   "LU of A in place (partial pivoting, the row exchanges in ipiv, U's diagonal as its "
+                   "reciprocal); 0 when A is singular to rank_tolerance relative to the larger of scale and "
+                   "A's largest |entry|; det (or NULL) receives det(A).", factor, hot=True),
+            record("void", f"{prefix}_dense_substitute",
+                   f"const {real} *LU, const int *ipiv, {real} *B, int n, int cols",
+                   f"Solve A X = B in place (B row-major n x cols) with the factors from {prefix}_dense_factor.",
+                   substitute, hot=True),
+            record("int", f"{prefix}_dense_solve",
+                   f"{real} *A, {real} *B, int n, int cols, {real} scale, {real} *det",
+                   f"Solve A X = B in place (n <= {size}): {prefix}_dense_factor, then "
+                   f"{prefix}_dense_substitute; 0 when A is singular (A then holds part of its factors).",
+                   solve, hot=True)]
 
 
 def _finite_result_function(w: KernelWriter) -> dict:
@@ -875,14 +839,21 @@ def _dynamics_functions(w: KernelWriter) -> list:
     kernel = system.kernel("dynamics")
     if system.recursive:
         return _recursive_dynamics_functions(w, kernel)
-    solve = _inline_dependent_lines(w, kernel) if w.n_dependent else None
-    body = w.head(kernel, touches_state=system.kinematics_identity, reads_inputs=True,
-                  on_singular="return dep_status;", dependent_solve=solve)
     M = results(kernel, "M")
-    body.append("/* Mass matrix, lower triangle */")
-    for (j, k), expr in M.items():
-        if expr != 0 or j == k:  # structural zeros are skipped by the factorization too
-            body.append(f"const {real} M_{j}_{k} = {w.expr(expr, f'M[{j}][{k}]')};")
+
+    def mass_lines():
+        lines = ["/* Mass matrix, lower triangle */"]
+        for (j, k), expr in M.items():
+            if expr != 0 or j == k:  # structural zeros are skipped by the factorization too
+                lines.append(f"const {real} M_{j}_{k} = {w.expr(expr, f'M[{j}][{k}]')};")
+        return lines
+
+    # eliminated dependent speeds: M and its reduction come before the terms that read them
+    reduced = _eliminated_head_lines(w, kernel, M, mass_lines()) if w.n_dependent else None
+    body = w.head(kernel, touches_state=system.kinematics_identity, reads_inputs=True,
+                  on_singular="return dep_status;", dependent_solve=reduced and reduced[0])
+    if not w.n_dependent:
+        body += mass_lines()
     body.append("/* Forcing */")
     for (j, _), expr in results(kernel, "F").items():
         body.append(f"const {real} F_{j} = {w.expr(expr, f'F[{j}]')};")
@@ -897,11 +868,12 @@ def _dynamics_functions(w: KernelWriter) -> list:
     arguments = f"{w.driven_arguments}, {real} *qd, {real} *ud"
     if w.n_dependent:
         return [record("int", f"{prefix}_dynamics", f"{arguments}, {real} *gauge",
-                       "K, M, F, A and gamma of every speed with shared temporaries, the dependent speeds "
-                       f"solved from the constraints; ud of the {w.n_u} independent speeds from Kane's reduced "
-                       f"equations ({prefix}_eliminated_solve); gauge (or NULL) receives the pivots of the "
-                       "reduced M (the singularity monitor of the drivers).",
-                       body + _eliminated_dynamics_lines(w, kernel, M), static=True)]
+                       "K, M, F, A and gamma of every speed with shared temporaries: A_D factored once, the "
+                       "dependent speeds and Kane's reduced M = C^T M C (factored while the terms that read the "
+                       f"dependent speeds are computed), then ud of the {w.n_u} independent speeds from the "
+                       "reduced equations; gauge (or NULL) receives the pivots of the reduced M and det(A_D) "
+                       "(the singularity monitor of the drivers).",
+                       body + _eliminated_tail_lines(w, kernel, M, reduced[1]), static=True)]
     if not m:
         factor, LD = ldlt_factor_lines(n, nonzero, real, failure)
         body += factor + _gauge_lines(n) + ldlt_substitution_lines(n, LD, real, lambda i: f"F_{i}",
@@ -952,42 +924,91 @@ def _recursive_dynamics_functions(w: KernelWriter, kernel) -> list:
                    [f"return {prefix}_dynamics_hot(t, x, {w.rp}, qd, ud, gauge);"], static=True)]
 
 
-def _inline_dependent_lines(w: KernelWriter, kernel) -> list:
-    """The dependent speeds solved where the kernel's temporaries that do not read them are done:
-    A_D u_dep = -(A_I u_I + b) from the kernel's own A and BI results (the same system and rank
-    test as ``<prefix>_dependent_speeds``, without evaluating A twice)."""
-    m, p, real, prefix = w.n_dependent, w.n_u, w.real, w.prefix
+def _eliminated_head_lines(w: KernelWriter, kernel, M: dict, mass_lines: list) -> tuple[list, set]:
+    """Kane's minimal equations from the unreduced ones, first half: with A = [A_I A_D] (independent,
+    dependent columns), u = C u_I + c, C = [I; -A_D^-1 A_I]. A_D is factored once (LU), and
+    A_D [C_D | u_dep] = [-A_I | -(A_I u_I + b)] gives C's lower rows and the dependent speeds (the
+    rank test's scale is the largest |entry| of A_I: A_D's own would make a 1 x 1 A_D, cos(theta) of a
+    sleigh, regular until it is exactly 0); then M and the reduced M_r = C^T M C, factored by LDL^T
+    (positive definite when M is on the null space of A; Kane and Levinson, Dynamics: Theory and
+    Applications, sec. 6.1). None of this reads the dependent speeds' terms, so it runs where the
+    kernel's temporaries that do not read them are done. Returns the lines and the factor's L
+    pattern."""
+    m, p, n, real, prefix = w.n_dependent, w.n_u, w.n_m, w.real, w.prefix
     fabs = "fabsf" if real == "float" else "fabs"
+    zero = literal(0, real)
+    width = p + 1
     A = results(kernel, "A")
-    lines = [f"{real} u_dep[{m}], AD_dep[{m * m}], scale_dep = {literal(0, real)};",
-             "/* the dependent speeds from A_D u_dep = -(A_I u_I + b); the rank test's scale is the largest",
-             " * |entry| of the independent columns of A */"]
-    lines += [f"AD_dep[{i * m + j}] = {w.expr(A.get((i, p + j), 0), f'A_D[{i}][{j}]')};"
+    lines = [f"{real} LU[{m * m}], X[{m * width}], u_dep[{m}], det, scale = {zero};", f"int ipiv[{m}];",
+             "/* A_D [C_D | u_dep] = [-A_I | -(A_I u_I + b)], A_D factored once (its LU serves the accelerations",
+             " * too); the rank test's scale is the largest |entry| of the independent columns of A */"]
+    lines += [f"LU[{i * m + j}] = {w.expr(A.get((i, p + j), 0), f'A_D[{i}][{j}]')};"
               for i in range(m) for j in range(m)]
-    lines += [f"u_dep[{i}] = -({w.expr(e, f'row {i}')});" for (i, _), e in results(kernel, "BI").items()]
+    for i in range(m):
+        for k in range(p):
+            entry = A.get((i, k), 0)
+            value = w.expr(entry, f'A[{i}][{k}]')
+            negated = zero if entry == 0 else f"-{value}" if entry.is_Atom else f"-({value})"
+            lines.append(f"X[{i * width + k}] = {negated};")
+    lines += [f"X[{i * width + p}] = -({w.expr(e, f'row {i}')});" for (i, _), e in results(kernel, "BI").items()]
     for i in range(m):
         for k in range(p):
             entry = A.get((i, k), 0)
             if entry != 0:
                 value = w.expr(entry, f'A[{i}][{k}]')  # a comparison, not fmax: gcc calls libm's fmax
-                lines.append(f"if ({fabs}({value}) > scale_dep) scale_dep = {fabs}({value});")
-    lines.append(f"if (!{prefix}_dense_solve(AD_dep, u_dep, {m}, 1, scale_dep, 0)) return LCG_SINGULAR_CONSTRAINTS;")
-    return lines
+                lines.append(f"if ({fabs}({value}) > scale) scale = {fabs}({value});")
+    lines += [f"if (!{prefix}_dense_factor(LU, ipiv, {m}, scale, &det)) return LCG_SINGULAR_CONSTRAINTS;",
+              f"{prefix}_dense_substitute(LU, ipiv, X, {m}, {width});"]
+    lines += [f"u_dep[{i}] = X[{i * width + p}];" for i in range(m)]
+    lines += mass_lines
+
+    def mass(i, j):  # M's entry (i, j) from its lower triangle, None for a structural zero
+        a, b = max(i, j), min(i, j)
+        return f"M_{a}_{b}" if M.get((a, b), 0) != 0 or a == b else None
+
+    def total(terms):
+        return " + ".join(terms) if terms else zero
+
+    lines.append("/* M C, then Kane's reduced mass matrix C^T M C (X's first p columns are C_D) */")
+    for i in range(n):
+        for j in range(p if i >= p else i + 1):  # the reduced M's lower triangle reads these
+            terms = [mass(i, j)] if mass(i, j) else []
+            terms += [f"{mass(i, p + k)}*X[{k * width + j}]" for k in range(m) if mass(i, p + k)]
+            lines.append(f"const {real} MC_{i}_{j} = {total(terms)};")
+    for i in range(p):
+        for j in range(i + 1):
+            terms = [f"MC_{i}_{j}"] + [f"X[{k * width + i}]*MC_{p + k}_{j}" for k in range(m)]
+            lines.append(f"const {real} Mr_{i}_{j} = {total(terms)};")
+    factor, LD = ldlt_factor_lines(p, {(i, j) for i in range(p) for j in range(i)}, real,
+                                   "LCG_SINGULAR_MASS_MATRIX", matrix="Mr")
+    lines += factor
+    lines.append("if (gauge) {  /* pivots of the reduced M and det(A_D), for the drivers' singularity monitor */")
+    lines += [f"    gauge[{j}] = D_{j};" for j in range(p)] + [f"    gauge[{p}] = det;", "}"]
+    return lines, LD
 
 
-def _eliminated_dynamics_lines(w: KernelWriter, kernel, M: dict) -> list:
-    """The unreduced M (mirrored), F, A and gamma into arrays for `_eliminated_solve_function`."""
-    real, n, m = w.real, w.n_m, w.n_dependent
-    zero = literal(0, real)
-    lines = [f"{real} Mfull[{n * n}], Fvec[{n}], A[{m * n}], gamma[{m}];"]
-    for j in range(n):
-        for k in range(n):
-            a, b = (j, k) if k <= j else (k, j)
-            lines.append(f"Mfull[{j * n + k}] = {f'M_{a}_{b}' if M.get((a, b), 0) != 0 or a == b else zero};")
-    lines += [f"Fvec[{j}] = F_{j};" for j in range(n)]
-    lines += [f"A[{i * n + j}] = {w.expr(e, f'A[{i}][{j}]')};" for (i, j), e in results(kernel, "A").items()]
-    lines += [f"gamma[{i}] = {w.expr(e, f'gamma[{i}]')};" for (i, _), e in results(kernel, "C").items()]
-    lines.append(f"return {w.prefix}_eliminated_solve(Mfull, Fvec, A, gamma, ud, gauge);")
+def _eliminated_tail_lines(w: KernelWriter, kernel, M: dict, LD: set) -> list:
+    """Kane's minimal equations, second half (after F and gamma, which read the dependent speeds):
+    ud = C ud_I + g, g = [0; A_D^-1 gamma] from A ud = gamma, with A_D's factors; then
+    (C^T M C) ud_I = C^T (F - M g) with the reduced M's factors."""
+    m, p, n, real, prefix = w.n_dependent, w.n_u, w.n_m, w.real, w.prefix
+    width = p + 1
+    lines = [f"{real} gD[{m}];", "/* g_D = A_D^-1 gamma: the dependent accelerations' part that ud_I does not give */"]
+    lines += [f"gD[{i}] = {w.expr(e, f'gamma[{i}]')};" for (i, _), e in results(kernel, "C").items()]
+    lines.append(f"{prefix}_dense_substitute(LU, ipiv, gD, {m}, 1);")
+    lines.append("/* the reduced forcing C^T (F - M g) */")
+    for i in range(n):
+        terms = [f"F_{i}"]
+        for k in range(m):
+            a, b = max(i, p + k), min(i, p + k)
+            if M.get((a, b), 0) != 0 or a == b:
+                terms.append(f"M_{a}_{b}*gD[{k}]")
+        lines.append(f"const {real} rest_{i} = {' - '.join(terms)};")
+    for i in range(p):
+        terms = [f"rest_{i}"] + [f"X[{k * width + i}]*rest_{p + k}" for k in range(m)]
+        lines.append(f"const {real} Fr_{i} = {' + '.join(terms)};")
+    lines += ldlt_substitution_lines(p, LD, real, lambda i: f"Fr_{i}", lambda i: f"ud[{i}]")
+    lines.append("return LCG_OK;")
     return lines
 
 

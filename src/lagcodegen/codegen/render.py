@@ -203,7 +203,7 @@ def render_sources(system: ReducedSystem, precision: str = "double", model_name:
         failure_call in line for f in functions for line in f["body"]))
     context["needs_spd"] = bool((context["has_constraints"] and (context["has_dynamics"]
                                                                  or context["has_constraint_terms"]))
-                                or context["has_symplectic_euler"] or bool(system.u_dependent and has_dynamics))
+                                or context["has_symplectic_euler"])
     env = template_environment()
     header_name = f"{names.prefix}.h"
     source_name = f"{names.prefix}.c"
