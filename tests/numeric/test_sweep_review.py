@@ -63,6 +63,26 @@ def test_stride_is_for_kept_trajectories_only():
         sweep(system, {"m2": [1.0, 2.0]}, x0=[1, 0, 0, 0], t_end=1.0, h=1e-2, stride=0)
 
 
+@pytest.mark.parametrize("trajectories", [False, True])
+def test_an_input_array_is_read_as_simulate_reads_it(trajectories):
+    """Found by review (session 16): without trajectories the kernel's stride of n_steps made a 2-row
+    array of a 100-step run pass as samples at t0 and t_end (status OK, a ramp nobody asked for),
+    where simulate refuses it; and the per-stride array simulate(stride=5) takes was refused. The
+    expectations are simulate's own refusal and simulate's run of the same array alone."""
+    system = _driven_pendulum()
+    run = {"x0": {"th": 1.0}, "t_end": 1.0, "h": 1e-2}
+    two_rows = np.array([[0.0], [1.0]])
+    with pytest.raises(InputError, match=r"an array of 2 rows does not match the run: expected 100 or 101 rows"):
+        simulate(system, run["x0"], run["t_end"], run["h"], inputs=two_rows, hold="foh")
+    with pytest.raises(InputError, match=r"an array of 2 rows does not match the run: expected 100 or 101 rows"):
+        sweep(system, {"m": [1.0]}, inputs=two_rows, hold="foh", trajectories=trajectories, **run)
+    per_stride = np.linspace(0.0, 1.0, 21)[:, None]
+    result = sweep(system, {"m": [1.0, 2.0]}, inputs=per_stride, stride=5, trajectories=trajectories,
+                   kernel="scalar", **run)
+    alone = simulate(system, run["x0"], run["t_end"], run["h"], stride=5, inputs=per_stride, params={"m": 2.0})
+    np.testing.assert_array_equal(result.x_final[1], alone.x[-1])
+
+
 def test_a_heatmap_refuses_a_repeated_grid_value():
     """Was: {"m2": [1, 1, 2]} drawn with one m2 = 1 row of zero height (members 0 and 1 invisible)."""
     from lagcodegen.analysis.heatmaps import plot_heatmap

@@ -221,9 +221,10 @@ def sweep(system: CompiledSystem, grid: Mapping | None = None, *, members: Mappi
     # stride spaces the kept trajectories alone (found by review: without them a stride of 1000 for 98
     # steps was refused, and one that did not divide the steps warned of samples never kept)
     if trajectories:
-        stride = stride_within(stride, n_steps)
-    else:
-        positive_int(stride, "stride")  # checked, though without trajectories it spaces nothing
+        stride = input_stride = stride_within(stride, n_steps)
+    else:  # the kernel keeps no samples, but an input array given per stride reads it (as simulate's);
+        # found by review: the kernel's stride of n_steps read a 2-row array as samples at t0 and t_end
+        input_stride = positive_int(stride, "stride")
         stride = max(1, n_steps)
     threads, chunk_size = _optional_positive(threads, "threads"), _optional_positive(chunk_size, "chunk_size")
     _check_runner(progress, client, kernel)
@@ -243,7 +244,7 @@ def sweep(system: CompiledSystem, grid: Mapping | None = None, *, members: Mappi
     checked, member_parameters = system, ps
     ramp = hold_code(hold)
     check_hold(method, ramp)
-    tables = member_input_tables(system, columns, values, inputs, member_inputs, t0, h, n_steps, stride, hold,
+    tables = member_input_tables(system, columns, values, inputs, member_inputs, t0, h, n_steps, input_stride, hold,
                                  max_output_bytes)
     held = tables is not None and tables[0].shape[1] == 1  # every member's inputs constant in time
     system = _kernel_system(system, method, project, kernel, tables is None or held)
