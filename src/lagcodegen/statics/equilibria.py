@@ -21,8 +21,9 @@ About an equilibrium q0 the small motions dq = q - q0 obey the linear model::
 
 Time convention: everything is evaluated at t0 = 0. For a steady relative equilibrium of a
 uniformly moving frame (the governor) M and F do not depend on t in the moving coordinates, so
-the choice does not matter; for a model whose equations depend on t the result is the linear
-model frozen at t = 0 (the true linearization is then time-varying).
+the choice does not matter; where the force at rest or M0, C0, K0 depend on t at q0 the linear
+model is time-varying (a pendulum on a vibrating pivot), and `linearize` refuses it
+(`statics.state_space.linearize_state` gives the Jacobian frozen at a chosen t0).
 
 Undamped natural frequencies solve ``K0 v = w**2 M0 v`` (Lagrange-Dirichlet: q0 is stable when
 K0 is positive definite); C0 (damping, and the gyroscopic Coriolis terms of a moving frame) is
@@ -84,7 +85,9 @@ def require_closed_form(eom: EquationsOfMotion, what: str) -> None:
                          f"{eom.name!r} does not form; Model(..., formulation='closed') forms them")
 
 
-def _steady_entry(eom: EquationsOfMotion, i: int, g: sp.Expr) -> sp.Expr:
+def _free_of_t(eom: EquationsOfMotion, g: sp.Expr) -> sp.Expr | None:
+    """g without t when its value does not depend on t (simplified for small models, else sampled),
+    else None."""
     t = eom.t
     if t not in g.free_symbols:
         return g
@@ -96,6 +99,14 @@ def _steady_entry(eom: EquationsOfMotion, i: int, g: sp.Expr) -> sp.Expr:
             return g
     if _independent_of_t(eom, g):
         return g.xreplace({t: 0})  # the value is the same at every t
+    return None
+
+
+def _steady_entry(eom: EquationsOfMotion, i: int, g: sp.Expr) -> sp.Expr:
+    steady = _free_of_t(eom, g)
+    if steady is not None:
+        return steady
+    t = eom.t
     raise ValueError(
         f"equilibrium condition F[{i}] (coordinate {eom.q[i]}) of model {eom.name!r} depends on "
         f"{t} at rest: {g}; find_equilibria solves for configurations that are equilibria at every t "
@@ -520,7 +531,8 @@ def linearize(eom: EquationsOfMotion, q0: Any, values: Mapping | None = None, in
     Raises
     ------
     ValueError
-        Wrong q0 length or unknown coordinate; unknown or missing parameter; F not
+        Wrong q0 length or unknown coordinate; unknown or missing parameter; q0 no equilibrium;
+        the force at rest or M0, C0, K0 depending on t at q0 (a time-varying linear model); F not
         differentiable at rest (``sign(u)`` friction, for instance); a model with constraints
         (use `statics.state_space.linearize_state`).
 
@@ -555,10 +567,11 @@ def linearize(eom: EquationsOfMotion, q0: Any, values: Mapping | None = None, in
                          f"and {eom.n_u} speeds; use statics.state_space.linearize_state")
     point = coordinate_point(eom, q0)
     at = {qi: sp.sympify(v) for qi, v in zip(eom.q, point)}
-    at[eom.t] = sp.S.Zero
     rest = {ui: 0 for ui in eom.u}
     C = _smooth(eom, -eom.forcing.jacobian(eom.u), eom.u).xreplace(rest)
     K = _smooth(eom, -eom.forcing.xreplace(rest).jacobian(eom.q), eom.q)  # d/dq commutes with u = 0
+    _check_steady(eom, at, rest, [("M", eom.mass_matrix), ("C0", C), ("K0", K)], values)
+    at[eom.t] = sp.S.Zero
     mats = [sp.ImmutableMatrix(A.xreplace(at)) for A in (eom.mass_matrix, C, K)]
     _check_at_rest(eom, at, rest, mats[2], values)
     if list(eom.kinematics) != list(eom.u):
@@ -583,6 +596,32 @@ def _check_unconstrained(eom: EquationsOfMotion, what: str, instead: str) -> Non
                          f"alone leave out the constraint forces; use {instead}")
 
 
+def _check_steady(eom: EquationsOfMotion, at: dict, rest: dict, matrices: list, values) -> None:
+    """A ValueError when the equations at q0 depend on t: the force at rest (q0 is then an equilibrium
+    at some instants only) or M, C0, K0 (the linear model is time-varying: a pendulum on a vibrating
+    pivot hangs at rest at every t, but its stability is Mathieu's, not that of the model frozen at
+    t = 0; found by review, which saw 'stable' there inside the first resonance tongue)."""
+    t = eom.t
+    if t not in set().union(eom.forcing.free_symbols, *(A.free_symbols for _, A in matrices)):
+        return
+    vals = dict(eom.parameter_values) if values is None else resolve_values(eom, values)
+    numbers = {p: sp.Float(v) for p, v in vals.items()}
+    force = sp.Matrix(eom.forcing).xreplace(rest).xreplace(at).xreplace(numbers)
+    for j, entry in enumerate(force):
+        if t in entry.free_symbols and _free_of_t(eom, entry) is None:
+            raise ValueError(f"model {eom.name!r} depends on {t} at q0: the generalized force at rest on "
+                             f"{eom.q[j]} is {entry}, so q0 is no equilibrium at every t; "
+                             "linearize_state(..., t0=) gives the Jacobian frozen at one instant")
+    for name, A in matrices:
+        A = sp.Matrix(A).xreplace(at).xreplace(numbers)
+        for j, k in itertools.product(range(A.rows), range(A.cols)):
+            if t in A[j, k].free_symbols and _free_of_t(eom, A[j, k]) is None:
+                raise ValueError(f"model {eom.name!r} depends on {t} at q0: {name}[{j},{k}] = {A[j, k]}, so the "
+                                 "linear model about q0 varies in time and its stability is not that of the model "
+                                 "frozen at one instant (a pendulum on a vibrating pivot: Mathieu's); "
+                                 "linearize_state(..., t0=) gives the Jacobian frozen at one instant")
+
+
 def _check_at_rest(eom: EquationsOfMotion, at: dict, rest: dict, K: sp.Matrix, values) -> None:
     """A ValueError naming the first coordinate whose generalized force at rest does not vanish at q0
     (q0 is then no equilibrium, and the linear model about it means nothing). Checked in numbers
@@ -592,6 +631,14 @@ def _check_at_rest(eom: EquationsOfMotion, at: dict, rest: dict, K: sp.Matrix, v
     force = sp.Matrix(eom.forcing).xreplace(rest).xreplace(at).xreplace(numbers)
     stiffness = sp.Matrix(K).xreplace(numbers)
     if force.free_symbols or stiffness.free_symbols:
+        # symbolic: an entry sympy shows nonzero (found by review: a pendulum at theta = 1/2 with no
+        # parameter values gave K0 = g l m cos(1/2) with no error)
+        for i, residual in enumerate(force):
+            if residual.free_symbols and residual.equals(0) is False:
+                raise ValueError(f"q0 = {[at[c] for c in eom.q]} is no equilibrium of model {eom.name!r}: the "
+                                 f"generalized force on {eom.q[i]} at rest is {residual}, not 0; find one with "
+                                 "find_equilibria, or linearize about any state with "
+                                 "statics.state_space.linearize_state")
         return
     force, stiffness = (np.array(A.evalf(), dtype=float) for A in (force, stiffness))
     q0 = np.array([float(sp.sympify(at[c]).xreplace(numbers)) for c in eom.q])

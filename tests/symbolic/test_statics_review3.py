@@ -1,0 +1,66 @@
+"""Statics found wrong by the review of session 16 (helper-55), each against a hand result or an
+independent integration (scipy's DOP853 at rtol = atol = 1e-12 on equations written here)."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import sympy as sp
+import sympy.physics.mechanics as me
+from scipy.integrate import solve_ivp
+
+from lagcodegen import Model, derive_equations
+from lagcodegen.statics.equilibria import linearize
+
+t = me.dynamicsymbols._t
+theta = me.dynamicsymbols("theta")
+m, length, g, amplitude, w = sp.symbols("m l g a w", positive=True)
+
+
+def test_a_point_at_rest_only_at_some_instants_is_no_equilibrium():
+    """Was: K0 = 9.81 and stable = True at theta = 0 under a torque 5 sin(2 t). By hand theta = 0 is at
+    rest there only where sin(2 t) = 0."""
+    forced = derive_equations(Model("forced", [theta], [m, length, g, amplitude, w],
+                                    kinetic_energy=m * length ** 2 * theta.diff() ** 2 / 2,
+                                    potential_energy=-m * g * length * sp.cos(theta),
+                                    generalized_forces={theta: amplitude * sp.sin(w * t)},
+                                    parameter_values={"m": 1.0, "l": 1.0, "g": 9.81, "a": 5.0, "w": 2.0}))
+    with pytest.raises(ValueError, match=r"model 'forced' depends on t at q0: the generalized force at rest on "
+                                         r"theta is 5\.0\*sin\(2\.0\*t\), so q0 is no equilibrium at every t"):
+        linearize(forced, [0.0], {})
+
+
+def test_a_time_varying_linear_model_is_refused():
+    """Was: K0 = 4.905 and stable = True for a pendulum on a pivot y = a cos(w t) in the first resonance
+    tongue (w = 2 sqrt(g / l), a = l / 8). By hand theta'' = -(g - a w^2 cos(w t)) sin(theta) / l; the
+    Floquet multipliers of its linearization over one period (DOP853) show the hanging position
+    unstable, which no model frozen at one instant can say."""
+    values = {"m": 1.0, "l": 1.0, "g": 9.81, "a": 0.125, "w": 2 * np.sqrt(9.81)}
+    N, O = me.ReferenceFrame("N"), me.Point("O")
+    O.set_vel(N, 0)
+    bob = O.locatenew("P", length * sp.sin(theta) * N.x + (amplitude * sp.cos(w * t) - length * sp.cos(theta)) * N.y)
+    pivot = derive_equations(Model("vibrating_pivot", [theta], [m, length, g, amplitude, w],
+                                   bodies=[me.Particle("bob", bob, m)], gravity=-g * N.y, frame=N, origin=O,
+                                   parameter_values=values))
+
+    def mathieu(time, s):
+        return [s[1], -(values["g"] - values["a"] * values["w"] ** 2 * np.cos(values["w"] * time)) / values["l"] * s[0]]
+
+    period = 2 * np.pi / values["w"]
+    monodromy = np.column_stack([solve_ivp(mathieu, [0, period], e, method="DOP853", rtol=1e-12, atol=1e-12).y[:, -1]
+                                 for e in np.eye(2)])
+    assert np.max(np.abs(np.linalg.eigvals(monodromy))) > 1.4  # unstable: the frozen model's "stable" was wrong
+    with pytest.raises(ValueError, match=r"model 'vibrating_pivot' depends on t at q0: K0\[0,0\] = .*cos\(.*t\), so "
+                                         r"the linear model about q0 varies in time"):
+        linearize(pivot, [0.0], {})
+
+
+def test_a_symbolic_point_off_equilibrium_is_refused():
+    """Was: K0 = g l m cos(1/2) with no error, parameters left symbolic. By hand the force at rest at
+    theta = 1/2 is -m g l sin(1/2), not 0 (with values= the same call was refused already)."""
+    pendulum = derive_equations(Model("pendulum", [theta], [m, g, length],
+                                      kinetic_energy=m * length ** 2 * theta.diff() ** 2 / 2,
+                                      potential_energy=-m * g * length * sp.cos(theta)))
+    with pytest.raises(ValueError, match=r"q0 = \[1/2\] is no equilibrium of model 'pendulum': the generalized "
+                                         r"force on theta at rest is -g\*l\*m\*sin\(1/2\), not 0"):
+        linearize(pendulum, [sp.Rational(1, 2)])
+    assert linearize(pendulum, [sp.pi]).K0 == sp.Matrix([[-g * length * m]])  # by hand: -m g l, standing
