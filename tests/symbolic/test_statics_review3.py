@@ -64,3 +64,19 @@ def test_a_symbolic_point_off_equilibrium_is_refused():
                                          r"force on theta at rest is -g\*l\*m\*sin\(1/2\), not 0"):
         linearize(pendulum, [sp.Rational(1, 2)])
     assert linearize(pendulum, [sp.pi]).K0 == sp.Matrix([[-g * length * m]])  # by hand: -m g l, standing
+
+
+def test_a_double_root_is_one_equilibrium_with_a_warning():
+    """Was: 7 'equilibria' spread over 1.57079630-1.57079634 and no warning. By hand, a torque
+    tau = m g l holds the pendulum at rest only where sin(theta) = 1: theta = pi/2, a saddle-node
+    (dF/dtheta = -m g l cos(pi/2) = 0 there)."""
+    from lagcodegen.statics.equilibria import EquilibriumWarning, find_equilibria
+
+    torque = sp.Symbol("tau", positive=True)
+    eom = derive_equations(Model("torqued", [theta], [m, length, g, torque],
+                                 kinetic_energy=m * length ** 2 * theta.diff() ** 2 / 2,
+                                 potential_energy=-m * g * length * sp.cos(theta), generalized_forces={theta: torque},
+                                 parameter_values={"m": 1.0, "l": 1.0, "g": 9.81, "tau": 9.81}))
+    with pytest.warns(EquilibriumWarning, match=r"1 of the 1 equilibria of model 'torqued' found have a singular"):
+        roots = find_equilibria(eom, {})
+    assert len(roots) == 1 and roots[0][eom.q[0]] == pytest.approx(np.pi / 2, abs=1e-4)

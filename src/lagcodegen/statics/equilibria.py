@@ -49,6 +49,8 @@ from ..symbolic.derive import EquationsOfMotion
 
 SIMPLIFY_MAX_N = 6        # above this, entries are never simplified (time checks go numeric)
 MAX_GUESSES = 512         # size of the default grid of starting points
+DEGENERATE_SLOPE = 1e-6   # an equilibrium whose Jacobian has a singular value below this, per equation's slope
+DEGENERATE_SPREAD = 1e-4  # degenerate ones this close (relative; rad for angles) are one
 LINEAR_GRID = (-2.0, 2.0)  # default guess range of coordinates that are not angles
 _TRIG = (sp.sin, sp.cos, sp.tan)
 
@@ -218,10 +220,12 @@ def _solve_numeric(eom: EquationsOfMotion, G: sp.Matrix, vals: dict, guesses: An
         # size of the terms of each equation at the starts, |F_i| and |dF_i/dq| |q|: a start that is
         # already a root has |F| at round-off level, which alone would make the tolerance unreachable.
         # Per equation: one scale for all let a small force (m2 = 0.01 beside m1 = 100) pass anywhere
-        sizes = np.zeros(n)
+        sizes, slopes = np.zeros(n), np.zeros(n)
         for x0 in starts:
-            row = np.maximum(np.abs(fun(x0)), np.abs(jac(x0)) @ np.abs(x0))
+            J0 = np.abs(jac(x0))
+            row = np.maximum(np.abs(fun(x0)), J0 @ np.abs(x0))
             sizes = np.maximum(sizes, np.where(np.isfinite(row), row, 0.0))
+            slopes = np.maximum(slopes, np.where(np.isfinite(J0), J0, 0.0).max(axis=1, initial=0.0))
         tol = 1e-9 * np.maximum(sizes, 1e-12 * max(float(sizes.max(initial=0.0)), 1e-300))
         roots = []
         for x0 in starts:
@@ -230,8 +234,18 @@ def _solve_numeric(eom: EquationsOfMotion, G: sp.Matrix, vals: dict, guesses: An
             if np.all(np.isfinite(x)) and np.all(np.isfinite(residual)) and np.all(np.abs(residual) <= tol):
                 roots.append(_canonical(x, angles))
         found = _unique(roots, angles)
-        singular = [x for x in found if np.linalg.matrix_rank(jac(x), tol=1e-9 * max(np.abs(jac(x)).max(), 1e-300)
-                                                              ) < n or not np.abs(jac(x)).max() > 0]
+        # singular relative to each equation's slopes over the starts, not to the Jacobian at the root
+        # itself: at a double root (a saddle-node) that is as small as the root's error, and the roots
+        # from different starts, each within tol, came back as a cluster of distinct ones (found by
+        # review: 7 'equilibria' over 4e-8 rad for one at pi/2); those are merged into one
+        scaled = [jac(x) / np.maximum(slopes, 1e-300)[:, None] for x in found]
+        singular = [x for x, J in zip(found, scaled) if not np.all(np.isfinite(J))
+                    or np.linalg.svd(J, compute_uv=False).min() < DEGENERATE_SLOPE]
+        if len(singular) > 1:
+            merged = _unique(singular, angles, tol=DEGENERATE_SPREAD)
+            found = [x for x in found if not any(x is y for y in singular)
+                     or any(x is y for y in merged)]
+            singular = merged
     if singular:
         warnings.warn(f"{len(singular)} of the {len(found)} equilibria of model {eom.name!r} found have a singular "
                       f"Jacobian of the equilibrium conditions (e.g. at q = {list(map(float, singular[0]))}): not "
