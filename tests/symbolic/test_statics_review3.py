@@ -80,3 +80,28 @@ def test_a_double_root_is_one_equilibrium_with_a_warning():
     with pytest.warns(EquilibriumWarning, match=r"1 of the 1 equilibria of model 'torqued' found have a singular"):
         roots = find_equilibria(eom, {})
     assert len(roots) == 1 and roots[0][eom.q[0]] == pytest.approx(np.pi / 2, abs=1e-4)
+
+
+def test_a_steady_motion_where_the_force_is_one_product():
+    """Was: 14 of 20 of a bead's relative equilibria on a hoop spun at W refused ("no solution ... The
+    solution converged"), and F = c (x^2 - 2)(1 + x^2) refused at x = sqrt(2): a product's residual was
+    measured against |F| itself, 0 at its roots. By hand, cos(theta0) = g / (R W^2) on the hoop."""
+    from lagcodegen.statics.steady import steady_motion
+
+    x = me.dynamicsymbols("x")
+    radius, spin, c = sp.symbols("R Omega c", positive=True)
+    N, O = me.ReferenceFrame("N"), me.Point("O")
+    O.set_vel(N, 0)
+    bead = O.locatenew("P", radius * sp.sin(theta) * (sp.cos(spin * t) * N.x + sp.sin(spin * t) * N.y)
+                       - radius * sp.cos(theta) * N.z)
+    hoop = derive_equations(Model("hoop", [theta], [m, radius, g, spin], bodies=[me.Particle("b", bead, m)],
+                                  gravity=-g * N.z, frame=N, origin=O,
+                                  parameter_values={"m": 1.0, "R": 0.5, "g": 9.81, "Omega": 6.0}))
+    for W in np.linspace(4.5, 12.0, 7):
+        motion = steady_motion(hoop, {"theta": 1.0}, unknowns=["theta"], steady=["theta_d"], values={"Omega": W})
+        assert motion.values["theta"] == pytest.approx(np.arccos(9.81 / (0.5 * W ** 2)), abs=1e-12)
+    product = derive_equations(Model("product_force", [x], [m, c], kinetic_energy=m * x.diff() ** 2 / 2,
+                                     generalized_forces={x: c * (x ** 2 - 2) * (1 + x ** 2)},
+                                     parameter_values={"m": 1.0, "c": 3.0}))
+    assert steady_motion(product, {"x": 1.4}, unknowns=["x"], steady=["x_d"]).values["x"] == pytest.approx(
+        np.sqrt(2), abs=1e-12)

@@ -111,9 +111,23 @@ def constraint_residuals(eom: EquationsOfMotion, q: Any, u: Any, values: Mapping
 
 
 def term_sizes(rows) -> sp.Matrix:
-    """Per row, the sum of the absolute values of its additive terms: the size a residual of the
-    row is measured against (its rounding level is a small multiple of eps times this)."""
-    return sp.Matrix([sum((sp.Abs(term) for term in sp.Add.make_args(row)), sp.S.Zero) for row in rows])
+    """Per row, the size a residual of the row is measured against (its rounding level is a small
+    multiple of eps times this): the sum of |terms| of a sum, the product of the factors' sizes of a
+    product, the base's size to a positive integer power, else |expr|. A product's |value| alone is
+    0 at its roots, which only an exact 0 then passed (found by review: a bead's steady angle on a
+    spinning hoop, F = sin(theta) (cos(theta) - g / (R W^2)) m R^2 W^2, was refused at residuals of
+    7e-15)."""
+    return sp.Matrix([_size(sp.sympify(row)) for row in rows])
+
+
+def _size(expr: sp.Expr) -> sp.Expr:
+    if expr.is_Add:
+        return sp.Add(*[_size(term) for term in expr.args])
+    if expr.is_Mul:
+        return sp.Mul(*[_size(factor) for factor in expr.args])
+    if expr.is_Pow and expr.exp.is_Integer and expr.exp > 0:
+        return _size(expr.base) ** expr.exp
+    return sp.Abs(expr)
 
 
 def checked_tolerance(tol, what: str) -> float:
