@@ -105,3 +105,44 @@ def test_a_steady_motion_where_the_force_is_one_product():
                                      parameter_values={"m": 1.0, "c": 3.0}))
     assert steady_motion(product, {"x": 1.4}, unknowns=["x"], steady=["x_d"]).values["x"] == pytest.approx(
         np.sqrt(2), abs=1e-12)
+
+
+def test_a_steady_search_that_reaches_a_singular_mass_matrix_names_it():
+    """Was: numpy's bare "LinAlgError: Singular matrix" from inside scipy's root. A spherical pendulum,
+    T = m l^2 (theta'^2 + sin^2(theta) phi'^2) / 2: by hand M = diag(m l^2, m l^2 sin^2 theta) is
+    singular at theta = 0, where the search for the conical motion at phi' = 10 from theta = 0.5 lands."""
+    from lagcodegen.statics.steady import steady_motion
+
+    phi = me.dynamicsymbols("phi")
+    spherical = derive_equations(Model("spherical_pendulum", [theta, phi], [m, length, g],
+                                       kinetic_energy=m * length ** 2 * (theta.diff() ** 2
+                                                                         + sp.sin(theta) ** 2 * phi.diff() ** 2) / 2,
+                                       potential_energy=-m * g * length * sp.cos(theta),
+                                       parameter_values={"m": 1.0, "l": 1.0, "g": 9.81}))
+    with pytest.raises(ValueError, match=r"steady motion of model 'spherical_pendulum': the search reached the "
+                                         r"configuration theta = 0, phi = 0, where the mass matrix .* is singular"):
+        steady_motion(spherical, {"theta": 0.5, "phi_d": 10.0}, unknowns=["theta"], steady=["theta_d"])
+    motion = steady_motion(spherical, {"theta": 1.4, "phi_d": 10.0}, unknowns=["theta"], steady=["theta_d"])
+    assert motion.values["theta"] == pytest.approx(np.arccos(9.81 / 100.0), abs=1e-12)  # by hand: g / (l W^2)
+
+
+def test_constrained_equilibrium_holds_inputs():
+    """Was: no inputs= (find_equilibria, linearize and steady_motion take one) and "Cannot convert
+    expression to float" on a driven model. By hand, a bob on a rod x^2 + y^2 = l^2 under gravity and a
+    horizontal force F: tan(angle) = F / (m g), x = l sin(angle), and lambda = F / (2 x) from F = 2 x lambda."""
+    from lagcodegen.statics.constrained import constrained_equilibrium
+
+    x, y, force = me.dynamicsymbols("x y F")
+    eom = derive_equations(Model("rod_with_force", [x, y], [m, length, g],
+                                 kinetic_energy=m * (x.diff() ** 2 + y.diff() ** 2) / 2, potential_energy=m * g * y,
+                                 generalized_forces={x: force}, inputs=[force], constraints=[x ** 2 + y ** 2 - length ** 2],
+                                 parameter_values={"m": 1.0, "l": 1.0, "g": 9.81}))
+    with pytest.raises(ValueError, match=r"model 'rod_with_force' has inputs F: pass their values"):
+        constrained_equilibrium(eom, [0.1, -0.9], {})
+    for bad in (float("nan"), -1.0):
+        with pytest.raises(ValueError, match=r"constrained_equilibrium: tol must be a positive finite number"):
+            constrained_equilibrium(eom, [0.1, -0.9], {}, inputs=[3.0], tol=bad)
+    q, lam = constrained_equilibrium(eom, [0.1, -0.9], {}, inputs={"F": 3.0})
+    angle = np.arctan(3.0 / 9.81)
+    np.testing.assert_allclose(q, [np.sin(angle), -np.cos(angle)], rtol=1e-10)
+    np.testing.assert_allclose(lam, [3.0 / (2 * np.sin(angle))], rtol=1e-10)

@@ -15,11 +15,19 @@ import scipy.optimize
 import sympy as sp
 
 from ..symbolic.derive import EquationsOfMotion
-from .equilibria import coordinate_point, equilibrium_conditions, resolve_values, substitute_values, vector_function
+from .consistent import checked_tolerance
+from .equilibria import (
+    coordinate_point,
+    equilibrium_conditions,
+    hold_inputs,
+    resolve_values,
+    substitute_values,
+    vector_function,
+)
 
 
 def constrained_equilibrium(eom: EquationsOfMotion, q_guess: Any, values: Mapping | None = None, *,
-                            fix: Any = None, tol: float = 1e-10) -> tuple[np.ndarray, np.ndarray]:
+                            fix: Any = None, tol: float = 1e-10, inputs: Any = None) -> tuple[np.ndarray, np.ndarray]:
     """Equilibrium of a model with holonomic constraints, and its multipliers.
 
     Principle of virtual displacements with constraints (Lagrange; Lurie, Analytical Mechanics,
@@ -52,6 +60,8 @@ def constrained_equilibrium(eom: EquationsOfMotion, q_guess: Any, values: Mappin
         Coordinates held at prescribed values (from ``q_guess`` unless a mapping gives them).
     tol : float
         Accepted residual relative to the size of the forces and constraint terms.
+    inputs : sequence (n_r,) or mapping input (Symbol or name) -> value
+        The inputs held constant; required when the model has inputs.
 
     Returns
     -------
@@ -66,6 +76,9 @@ def constrained_equilibrium(eom: EquationsOfMotion, q_guess: Any, values: Mappin
         not unique (A restricted to the free coordinates has rank < m), or no convergence (the
         message names the worst equation and its residual).
     """
+    # found by review: with no inputs= a driven model failed with "Cannot convert expression to float"
+    eom = hold_inputs(eom, inputs)
+    tol = checked_tolerance(tol, "constrained_equilibrium")
     _check_static_constraints(eom)
     vals = resolve_values(eom, {} if values is None else values)
     q0 = np.array(coordinate_point(eom, q_guess), dtype=float)

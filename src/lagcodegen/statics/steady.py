@@ -126,7 +126,13 @@ def steady_motion(eom: EquationsOfMotion, given: Mapping, unknowns: Sequence[str
     def equations(z: np.ndarray) -> np.ndarray:
         x = x0.copy()
         x[solved] = z
-        return np.concatenate([constraints(x), accelerations(x)[wanted]])
+        try:
+            return np.concatenate([constraints(x), accelerations(x)[wanted]])
+        except np.linalg.LinAlgError:  # found by review: numpy's bare "Singular matrix" from inside root
+            point = ", ".join(f"{c} = {x[i]:.6g}" for i, c in enumerate(eom.q))
+            raise ValueError(f"steady motion of model {eom.name!r}: the search reached the configuration {point}, "
+                             "where the mass matrix (with the constraints: [[M, A^T], [A, 0]]) is singular; start "
+                             "from guesses away from it") from None
 
     result = root(equations, x0[solved], method="hybr", options={"xtol": 1e-14})
     x = x0.copy()
