@@ -362,7 +362,10 @@ class Model:
         if not isinstance(self.dependent_speeds, (list, tuple)):
             raise ModelError(f"dependent_speeds must be a list or tuple of coordinates, got "
                              f"{type(self.dependent_speeds).__name__}")
-        named = tuple(self.dependent_speeds)
+        by_name = {c.func.__name__: c for c in self.coordinates if hasattr(c, "func")}
+        # a coordinate by its name too (found by review: dependent_speeds=["y"] was "not a coordinate
+        # (coordinates: x, y)")
+        named = tuple(by_name.get(q, q) if isinstance(q, str) else q for q in self.dependent_speeds)
         if not named:
             return named
         if self.sympy_model is not None:

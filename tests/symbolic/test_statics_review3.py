@@ -146,3 +146,47 @@ def test_constrained_equilibrium_holds_inputs():
     angle = np.arctan(3.0 / 9.81)
     np.testing.assert_allclose(q, [np.sin(angle), -np.cos(angle)], rtol=1e-10)
     np.testing.assert_allclose(lam, [3.0 / (2 * np.sin(angle))], rtol=1e-10)
+
+
+def test_statics_arguments_name_the_culprit():
+    """Found by review: each of these named nothing ("Cannot convert expression to float", numpy's
+    "truth value of an array ... is ambiguous"), passed silently (a NaN guess gave [], inputs=0.0 on a
+    model without inputs), or contradicted itself (the model's own Symbol phi_d was "no state ...
+    (states: ..., phi_d)"; dependent_speeds=["y"] was "not a coordinate (coordinates: x, y)")."""
+    import math
+
+    from lagcodegen import catalog
+    from lagcodegen.statics.equilibria import find_equilibria
+    from lagcodegen.statics.state_space import linearize_state
+    from lagcodegen.statics.steady import steady_motion
+
+    dp = derive_equations(catalog.double_pendulum())
+    cases = [
+        (lambda: linearize_state(dp, [0, 0, 0, 0], values={}, t0="a"), TypeError, r"^t0 must be a real number, got 'a'"),
+        (lambda: linearize_state(dp, [sp.Symbol("a"), 0, 0, 0], values={}), ValueError,
+         r"^x0 entry for q1 holds a, which is no parameter of model 'double_pendulum'"),
+        (lambda: linearize_state(dp, [1j, 0, 0, 0], values={}), ValueError, r"^x0 entry for q1 must be real"),
+        (lambda: find_equilibria(dp, {}, guesses=[[math.nan, 0.0]]), ValueError, r"^guesses\[0\] = \[nan, 0\.0\] is not finite"),
+        (lambda: linearize(dp, [0, 0], {}, inputs=0.0), ValueError, r"model 'double_pendulum' has no inputs, got inputs=0\.0"),
+        (lambda: linearize(dp, [0, 0], {}, inputs=np.array([1.0, 2.0])), ValueError,
+         r"model 'double_pendulum' has no inputs, got inputs=array"),
+    ]
+    for call, error, message in cases:
+        with pytest.raises(error, match=message):
+            call()
+    assert linearize(dp, [0, 0], {}, inputs=[]).K0.shape == (2, 2)  # an empty list says "no inputs"
+
+    phi = me.dynamicsymbols("phi")
+    torque, drag = sp.symbols("tau c", positive=True)
+    # J phi'' = tau - c phi': by hand the steady spin is tau / c = 3, named by the model's own Symbol
+    flywheel = derive_equations(Model("flywheel", [phi], [m, torque, drag], kinetic_energy=m * phi.diff() ** 2 / 2,
+                                      generalized_forces={phi: torque - drag * phi.diff()},
+                                      parameter_values={"m": 2.0, "tau": 6.0, "c": 2.0}))
+    by_symbol = steady_motion(flywheel, {"phi_d": 1.0}, unknowns=[flywheel.u[0]], steady=[flywheel.u[0]])
+    assert by_symbol.values["phi_d"] == pytest.approx(3.0, rel=1e-12)
+    with pytest.raises(TypeError, match=r"steady motion: steady must be a list of state names, got 'phi_d'"):
+        steady_motion(flywheel, {"phi_d": 1.0}, unknowns=["phi_d"], steady="phi_d")
+    x, y = me.dynamicsymbols("x y")
+    sleigh = Model("sleigh", [x, y], [m], kinetic_energy=m * (x.diff() ** 2 + y.diff() ** 2) / 2,
+                   motion_constraints=[y.diff() - x.diff()], dependent_speeds=["y"])
+    assert sleigh.dependent_speeds == (y,)

@@ -294,6 +294,9 @@ def _starting_points(eom: EquationsOfMotion, guesses: Any, angles: tuple) -> np.
         if x0.ndim != 2 or x0.shape[1] != n:
             raise ValueError(f"guesses must have shape (k, {n}) for coordinates "
                              f"{', '.join(map(str, eom.q))}; got {guesses!r}")
+        if not np.all(np.isfinite(x0)):  # found by review: a NaN guess returned [] with no word
+            row = int(np.argwhere(~np.isfinite(x0))[0][0])
+            raise ValueError(f"guesses[{row}] = {x0[row].tolist()} is not finite")
         return x0
     per_axis = max(2, min(8, int(round(MAX_GUESSES ** (1.0 / n), 9))))
     axes = [-np.pi + 2 * np.pi * np.arange(per_axis) / per_axis if a
@@ -685,7 +688,9 @@ def hold_inputs(eom: EquationsOfMotion, inputs: Any) -> EquationsOfMotion:
     """``eom`` with its inputs replaced by constant values (a sequence in ``eom.inputs`` order or a
     mapping by Symbol or name); ValueError naming an input without a value or an unknown one."""
     if not eom.inputs:
-        if inputs:
+        # an empty list or mapping says as much; anything else is a mistake (found by review: 0.0 passed,
+        # and an array of two raised numpy's "truth value of an array ... is ambiguous")
+        if inputs is not None and not (isinstance(inputs, (Mapping, Sequence, np.ndarray)) and len(inputs) == 0):
             raise ValueError(f"model {eom.name!r} has no inputs, got inputs={inputs!r}")
         return eom
     if inputs is None:

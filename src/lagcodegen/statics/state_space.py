@@ -138,12 +138,23 @@ def linearize_state(eom: EquationsOfMotion, x0: Any, r0: Any = None, values: Map
         raise ValueError(f"model {eom.name!r} has constraints: its linearization is numeric; pass values= "
                          "({} for the defaults)")
     require_closed_form(eom, "linearize_state")
+    if isinstance(t0, (str, bytes, bool)) or not isinstance(t0, (real_numbers.Real, sp.Basic)):
+        raise TypeError(f"t0 must be a real number, got {t0!r}")  # was "Cannot convert expression to float"
     if isinstance(t0, real_numbers.Real) and not math.isfinite(float(t0)):  # A had NaN entries, no error
         raise ValueError(f"t0 must be finite, got {t0!r}")
     states = tuple(eom.q) + tuple(eom.u)
     if eom.n_dependent:
         x0 = _with_dependent_speeds(eom, x0, values, t0)
     point = _state_point(eom, x0)
+    if values is not None:  # numbers, or expressions in the parameters that values= gives
+        for what, value in [(f"x0 entry for {s}", v) for s, v in zip(states, point)] + [("t0", t0)]:
+            value = sp.sympify(value)
+            stray = sorted(map(str, value.free_symbols - set(eom.parameters)))
+            if stray:
+                raise ValueError(f"{what} holds {', '.join(stray)}, which is no parameter of model {eom.name!r}: "
+                                 "with values= the point is numeric")
+            if value.is_real is False or value.has(sp.I):
+                raise ValueError(f"{what} must be real, got {value}")
     if eom.inputs and r0 is None:
         raise ValueError(f"model {eom.name!r} has inputs {', '.join(map(str, eom.inputs))}: pass r0")
     held = input_point(eom, r0) if eom.inputs else ()

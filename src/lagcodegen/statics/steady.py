@@ -23,7 +23,14 @@ import sympy as sp
 
 from ..symbolic.derive import EquationsOfMotion
 from .consistent import checked_tolerance, residual_sizes, term_sizes
-from .equilibria import hold_inputs, named_point, require_closed_form, resolve_values, substitute_values
+from .equilibria import (
+    hold_inputs,
+    input_key_name,
+    named_point,
+    require_closed_form,
+    resolve_values,
+    substitute_values,
+)
 
 #: the functions that switch, as the complex step must see them: the branch the real part is on,
 #: continued analytically (Martins, Sturdza and Alonso, ACM TOMS 29 (2003) 245, sec. 3: abs by the
@@ -89,6 +96,12 @@ def steady_motion(eom: EquationsOfMotion, given: Mapping, unknowns: Sequence[str
     eom = hold_inputs(eom, inputs)  # found by review: a driven model failed with "Cannot convert expression to float"
 
     checked_tolerance(tol, "steady motion")
+    # names as strings, Symbols or dynamicsymbols (found by review: the model's own Symbol phi_d was "no
+    # state ... (states: ..., phi_d)", and steady="theta_d" was read letter by letter: "'t' is no state")
+    for label, listed in (("unknowns", unknowns), ("steady", steady)):
+        if isinstance(listed, (str, bytes)) or not isinstance(listed, (Sequence, np.ndarray)):
+            raise TypeError(f"steady motion: {label} must be a list of state names, got {listed!r}")
+    unknowns, steady = ([input_key_name(name) for name in listed] for listed in (unknowns, steady))
     if not steady:
         raise ValueError("steady motion: name at least one steady speed")
     if eom.n_q != eom.n_u:
