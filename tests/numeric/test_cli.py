@@ -98,6 +98,9 @@ def test_bad_grid_syntax_names_the_item(item, culprit, capsys):
     (["--grid", "m2=1,2", "--param", "zz=1"], ["unknown name 'zz'", "--param"]),
     (["--grid", "m2=1,2", "--field", "q_max:r"], ["--field", "q1, q2"]),
     (["--grid", "m2=1,2", "--heatmap", "x.png"], ["--heatmap", "two"]),
+    # found by review (session 16): the swept values won silently, and the .npz recorded --param's
+    (["--grid", "m2=1,2", "--param", "m2=3"], ["--param 'm2'", "swept by --grid/--table"]),
+    (["--grid", "q1=0.5,1"], ["--x0 'q1'", "swept by --grid/--table"]),
 ])
 def test_bad_sweep_arguments_name_the_culprit(argv, words, capsys):
     message = cli_error(["sweep", "double_pendulum", *DP_RUN, "--x0", "q1=1,q2=0", *argv], capsys)

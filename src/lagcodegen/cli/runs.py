@@ -426,6 +426,10 @@ def cmd_sweep(args) -> int:
         raise UsageError("--scheduler is given an empty address; give one like tcp://host:8786")
     members = parse_grid(args.grid) if args.grid else read_table(args.table)
     eom, fixed, params, x0 = prepare_run(args, "sweep", swept=members)
+    for option, given in (("--param", params), ("--x0", x0)):
+        both = sorted(set(given) & set(members))
+        if both:  # found by review: the swept values won, and the .npz recorded the dropped --param value
+            raise UsageError(f"{option} {both[0]!r} is swept by --grid/--table too; drop one of them")
     n_members = math.prod(len(v) for v in members.values()) if args.grid else len(next(iter(members.values())))
     steps = check_steps(args, eom.n_state, n_members, keep=args.trajectories)
     for name in members:  # a swept coordinate needs no base value in --x0
