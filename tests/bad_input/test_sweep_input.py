@@ -65,7 +65,7 @@ def pendulum(compiled_example):
     ({"grid": {"m2": [[1.0, 2.0], [3.0]]}}, ValueError, r"grid axis 'm2' has values of uneven shape"),
     ({"grid": {"m2": [10 ** 400]}}, ValueError, r"grid axis 'm2' holds a number beyond the double range"),
     ({"grid": {"m2": ()}}, ValueError, r"grid axis 'm2' has no values"),
-    ({"grid": {"m2": (1.0, math.nan)}}, ValueError, r"m2 are not all finite"),
+    ({"grid": {"m2": (1.0, math.nan)}}, ValueError, r"swept 'm2' = nan \(member 1\) is not finite"),
     ({"grid": [("m2", (1.0, 2.0))]}, TypeError, r"^grid must be a mapping"),
     ({"grid": {"m2": GRID["m2"], "theta": (0.1,)}}, ValueError, r"cannot sweep 'theta'"),
     ({"grid": None, "members": {"m2": (1.0, "x")}}, TypeError, r"member column 'm2' holds a non-number: 'x'"),

@@ -216,6 +216,15 @@ def test_a_table_saved_with_a_byte_order_mark_reads(tmp_path, capsys):
     np.testing.assert_array_equal(np.load(out)["values"], [[1, 2], [3, 4]])
 
 
+def test_a_table_cell_that_is_not_finite_names_its_line(tmp_path, capsys):
+    # found by review: "nan" read as a number, then "swept values of m2 are not all finite", no line
+    table = tmp_path / "members.csv"
+    table.write_text("m2,l2\n1,2\n3,4\nnan,1\n")
+    message = cli_error(["sweep", "double_pendulum", "--table", table, "--t-end", "0.01", "--h", "1e-3",
+                         "--x0", "q1=1,q2=0.5"], capsys)
+    assert f"--table {table} line 4: m2 = 'nan' is not finite" in message, message
+
+
 def test_a_table_that_is_not_utf8_is_named(tmp_path, capsys):
     # found by review: "'utf-8' codec can't decode byte 0xff in position 0", naming neither
     table = tmp_path / "members.csv"

@@ -270,8 +270,10 @@ COMMON = dict(x0=X0, t_end=T_END, t0=T0, h=H)
     ({"grid": {"q9": (1.0,)}}, r"'q9'.*q1, q2, q1_d, q2_d"),
     ({"grid": {}}, r"grid is empty"),
     ({"grid": {"m2": M2, "l2": []}}, r"'l2' has no values"),
-    ({"grid": {"m2": (1.0, np.nan)}}, r"m2 are not all finite"),
-    ({"grid": {"l1": (1.0,), "q1": (0.1, np.inf)}}, r"of q1 are not all finite"),
+    ({"grid": {"m2": (1.0, np.nan)}}, r"swept 'm2' = nan \(member 1\) is not finite"),
+    ({"grid": {"l1": (1.0,), "q1": (0.1, np.inf)}}, r"swept 'q1' = inf \(member 1\) is not finite"),
+    # found by review (session 16): one NaN among many members was named by its column only
+    ({"members": {"m2": (1.0,) * 7 + (np.nan,) + (1.0,) * 5}}, r"swept 'm2' = nan \(member 7\) is not finite"),
     ({"members": {"m2": (1.0, 2.0), "l2": (1.0,)}}, r"equally long.*'m2': 2, 'l2': 1"),
     ({"members": {}}, r"member table is empty"),
     ({"grid": {"m2": M2}, "members": {"m2": M2}}, r"exactly one of grid= .* or members="),

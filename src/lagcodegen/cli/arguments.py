@@ -261,9 +261,12 @@ def read_table(path: str) -> dict:
             raise UsageError(f"--table {path} line {line} has {len(row)} values, the header {len(header)}")
         for name, cell in zip(header, row):
             try:
-                table[name].append(float(cell))
+                value = float(cell)
             except ValueError:
                 raise UsageError(f"--table {path} line {line}: {name} = {cell!r} is not a number") from None
+            if not math.isfinite(value):  # found by review: "nan" passed here, to an error naming no line
+                raise UsageError(f"--table {path} line {line}: {name} = {cell!r} is not finite")
+            table[name].append(value)
     return {name: np.array(values) for name, values in table.items()}
 
 
