@@ -119,3 +119,31 @@ def test_bad_inputs_on_the_command_line(model_file, tmp_path, capsys, extra, mes
     code = main(["simulate", str(model_file), "--t-end", "2", "--h", "1e-3", "--x0", "x=0", *extra])
     assert code == EXIT_USAGE
     assert message in capsys.readouterr().err
+
+
+def test_a_sweep_keeps_the_measurements_summaries(model_file, tmp_path, capsys):
+    """Found by review (session 16): the .npz, said to hold every SweepResult array, dropped y_final,
+    y_min and y_max, and no --field named them. Expected: spring_force = -k x with the textbook step
+    response, at the end and at its extreme over the steps (the same grid of times)."""
+    out = tmp_path / "sweep.npz"
+    code = main(["sweep", str(model_file), "--grid", "F=0.5,1,2", "--t-end", "2", "--h", "1e-3", "--x0", "x=0",
+                 "--field", "y_min:spring_force", "--out", str(out)])
+    text = capsys.readouterr().out
+    assert code == 0 and "y_min:spring_force (min spring_force over the run)" in text, text
+    saved = np.load(out)
+    assert list(saved["measurement_names"]) == ["spring_force"]
+    times = np.arange(2001) * 1e-3
+    for member, force in enumerate((0.5, 1.0, 2.0)):
+        assert saved["y_final"][member, 0] == pytest.approx(-4 * step_response(2.0, force), abs=1e-7)
+        assert saved["y_min"][member, 0] == pytest.approx(-4 * step_response(times, force).max(), abs=1e-7)
+        assert saved["y_max"][member, 0] == pytest.approx(0.0, abs=1e-12)  # x >= 0 from rest under F > 0
+    assert "the model has no measurements" in _usage_error(["sweep", "double_pendulum", "--grid", "m2=1,2",
+                                                             "--t-end", "0.01", "--h", "1e-3", "--x0", "q1=1,q2=0",
+                                                             "--field", "y_max:f"], capsys)
+
+
+def _usage_error(argv, capsys) -> str:
+    code = main(argv)
+    captured = capsys.readouterr()
+    assert code == EXIT_USAGE, captured
+    return captured.err

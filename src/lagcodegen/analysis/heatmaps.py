@@ -30,7 +30,8 @@ if TYPE_CHECKING:
 
 #: fields with one value per member, and those that take a state-variable name after a colon
 SCALAR_FIELDS = ("energy_error", "blowup_time", "steps_done", "status")
-PER_VARIABLE_FIELDS = ("q_max", "x_final")
+PER_VARIABLE_FIELDS = ("q_max", "x_final", "y_final", "y_min", "y_max")
+_MEASUREMENT_LABELS = {"y_final": "final {}", "y_min": "min {} over the run", "y_max": "max {} over the run"}
 #: fields that describe failures, so failed members are not greyed out for them
 FAILURE_FIELDS = ("blowup_time", "steps_done", "status")
 _LABELS = {"energy_error": "max |E - E0| over the run", "blowup_time": "time of failure",
@@ -40,30 +41,38 @@ _FAILED_GREY, _NOT_RUN_GREY = "0.45", "0.82"
 _INFINITE_COLOURS, _NONPOSITIVE_COLOUR = ("#ff1493", "#00bfff"), "#f5deb3"
 
 
-def resolve_field(field: str, coordinate_names: Sequence[str], state_names: Sequence[str]) -> tuple:
+def resolve_field(field: str, coordinate_names: Sequence[str], state_names: Sequence[str],
+                  measurement_names: Sequence[str] = ()) -> tuple:
     """``(attribute, column index or None, label)`` of a field name; ValueError names the culprit.
 
-    ``"q_max"`` alone is accepted for one-coordinate models; otherwise ``"q_max:<coordinate>"``.
+    ``"q_max"`` alone is accepted for one-coordinate models; otherwise ``"q_max:<coordinate>"``;
+    ``y_final``, ``y_min`` and ``y_max`` take a measurement's name.
     """
     attribute, _, variable = str(field).partition(":")
     if attribute in SCALAR_FIELDS and not variable:
         return attribute, None, _LABELS[attribute]
+    measured = ", y_final/y_min/y_max:<measurement>" if measurement_names else ""
     if attribute not in PER_VARIABLE_FIELDS:
         raise ValueError(f"unknown field {field!r}; fields: {', '.join(SCALAR_FIELDS)}, "
-                         f"q_max:<coordinate>, x_final:<state variable>")
-    names = tuple(coordinate_names if attribute == "q_max" else state_names)
+                         f"q_max:<coordinate>, x_final:<state variable>{measured}")
+    kind, names = {"q_max": ("coordinate", coordinate_names), "x_final": ("state variable", state_names)}.get(
+        attribute, ("measurement", measurement_names))
+    names = tuple(names)
+    if not names:
+        raise ValueError(f"field {field!r}: the model has no measurements")
     if not variable and len(names) == 1:
         variable = names[0]
     if variable not in names:
-        raise ValueError(f"field {field!r} needs a {'coordinate' if attribute == 'q_max' else 'state variable'}"
-                         f" after the colon: one of {', '.join(names)}")
-    label = f"max |{variable}| over the run" if attribute == "q_max" else f"final {variable}"
+        raise ValueError(f"field {field!r} needs a {kind} after the colon: one of {', '.join(names)}")
+    label = {"q_max": f"max |{variable}| over the run", "x_final": f"final {variable}"}.get(
+        attribute) or _MEASUREMENT_LABELS[attribute].format(variable)
     return attribute, names.index(variable), label
 
 
 def field_values(result: SweepResult, field: str) -> tuple[np.ndarray, str]:
     """``(values (n_members,) float, label)`` of a named field of a sweep."""
-    attribute, column, label = resolve_field(field, result.coordinate_names, result.state_names)
+    attribute, column, label = resolve_field(field, result.coordinate_names, result.state_names,
+                                             result.measurement_names)
     data = getattr(result, attribute)
     if data is None:
         raise ValueError(f"this sweep recorded no {attribute!r} (a model without energies, or track_energy=False)")

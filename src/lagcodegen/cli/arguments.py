@@ -295,6 +295,7 @@ fields (--field, for the summary and the heatmap):
   q_max:<coordinate>   max |q| over the run      x_final:<state>   final value
   energy_error         max |E - E0| over the run blowup_time       time a failed member stopped
   steps_done           steps completed           status            the member's status code (below)
+  y_final:<measurement>, y_min:<measurement>, y_max:<measurement>: a measurement's final, least, greatest value
 
 status codes of members:
 {status_codes}

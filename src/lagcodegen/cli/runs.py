@@ -326,7 +326,8 @@ def check_sweep_outputs(args, members: dict, eom) -> str:
     coordinates = [q.name for q in eom.q]
     field = args.field if args.field is not None else f"q_max:{coordinates[0]}"
     try:
-        resolve_field(field, coordinates, coordinates + [u.name for u in eom.u])
+        resolve_field(field, coordinates, coordinates + [u.name for u in eom.u],
+                      [name for name, _ in eom.measurements])
     except ValueError as error:
         raise UsageError(f"--field: {error}") from None
     if field == "energy_error" and not _has_energy(eom):
@@ -369,8 +370,11 @@ def save_sweep(path, result, system, eom, args, params, x0) -> None:
     from ..run.simulate import parameter_vector
 
     arrays = {name: getattr(result, name) for name in ("values", "x_final", "q_max", "status", "steps_done",
-                                                      "blowup_time", "energy_error", "t", "trajectories")}
+                                                      "blowup_time", "energy_error", "t", "trajectories",
+                                                      "y_final", "y_min", "y_max")}
     arrays = {name: value for name, value in arrays.items() if value is not None}
+    if result.y_final is not None:  # found by review: the measurements' summaries were computed, then dropped
+        arrays["measurement_names"] = np.array(result.measurement_names)
     if result.grid is not None:
         arrays |= {f"grid_{name}": axis for name, axis in zip(result.columns, result.grid)}
     layout = system.layout
