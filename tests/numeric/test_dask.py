@@ -231,3 +231,26 @@ def test_a_cluster_without_workers_is_named(pendulum, distributed, monkeypatch):
             distributed.Client(cluster) as client:
         with pytest.raises(RuntimeError, match="has no worker"):
             sweep(pendulum, GRID, client=client, **RUN)
+
+
+def test_the_default_chunks_count_the_cluster_threads(pendulum, distributed, monkeypatch):
+    """Found by review (session 16): the default chunk size counted the client's cores (2 here), so
+    1000 members became 8 tasks on a 12-thread cluster and at most 8 of its threads ever ran. By
+    hand: about 4 chunks per cluster thread, 48 for 12 threads (fewer only by the rounding of a
+    chunk up to whole lane groups). The members' results are the local sweep's (bitwise)."""
+    sizes = []
+    real_call = sweep_module._call
+
+    def call(job, xs, ps, out):
+        sizes.append(len(xs))
+        real_call(job, xs, ps, out)
+
+    grid = {"m2": tuple(np.linspace(0.5, 2.0, 40)), "q1": tuple(np.linspace(-1.0, 1.0, 25))}  # 1000 members
+    run = dict(x0=X0, t_end=0.05, h=0.01)
+    local = sweep(pendulum, grid, threads=2, **run)
+    monkeypatch.setattr(sweep_module, "_call", call)
+    with distributed.LocalCluster(n_workers=6, threads_per_worker=2, processes=False,
+                                  dashboard_address=None) as cluster, distributed.Client(cluster) as client:
+        remote = sweep(pendulum, grid, client=client, **run)
+    assert sum(sizes) == 1000 and len(sizes) >= 40, sizes
+    assert_array_equal(remote.x_final, local.x_final)
