@@ -83,6 +83,7 @@ def test_parse_axis(item, name, expected):
 @pytest.mark.parametrize("item, culprit", [
     ("k", "k"), ("k=", "k="), ("=1,2", "=1,2"), ("k=1:2", "1:2"), ("k=1:2:x", "1:2:x"),
     ("k=1:2:3:4", "1:2:3:4"), ("k=1:2:0", "count"), ("k=0:2:5:log", "positive"), ("k=a,b", "a,b"),
+    ("k=1:2:100000000000", "100000000000 values alone would need"),  # was: allocated, then "out of memory"
 ])
 def test_bad_grid_syntax_names_the_item(item, culprit, capsys):
     message = cli_error(["sweep", "double_pendulum", "--grid", item, *DP_RUN, "--x0", "q1=1,q2=0"], capsys)

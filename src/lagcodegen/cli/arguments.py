@@ -218,6 +218,11 @@ def parse_axis(item: str) -> tuple:
                          "(numbers start and stop, an integer count)") from None
     if count < 1:
         raise UsageError(f"--grid {name!r}: count must be at least 1, got {count}")
+    from ..run.arguments import output_limit
+
+    if 8 * count > output_limit():  # found by review: 1e9 values were allocated, then "out of memory"
+        raise UsageError(f"--grid {name!r}: {count} values alone would need {8 * count / 2 ** 30:.3g} GiB, more "
+                         f"than the {output_limit() / 2 ** 30:.3g} GiB a run may take; give fewer")
     if log and not (start > 0 and stop > 0):
         raise UsageError(f"--grid {name!r}: a log axis needs positive start and stop, "
                          f"got {start:g}:{stop:g}")
