@@ -110,7 +110,7 @@ def stepper_context(system, names, real: str, methods: list) -> dict:
                 {"name": scheme.name, "title": scheme.title or scheme.name, "order": scheme.order,
                  "stages": scheme.stages,
                  "lines": _explicit_stage_lines(scheme, prefix, len(system.q), N, dynamics, bool(system.inputs),
-                                                (G - 1, real) if system.u_dependent else None)})
+                                                G - 1 if system.u_dependent else None)})
         elif kind == KIND_IMPLICIT:
             context["tableaux"].append(_tableau_record(scheme, real))
             s = scheme.stages
@@ -301,17 +301,17 @@ def _tableau_record(scheme, real: str) -> dict:
 
 
 def _explicit_stage_lines(scheme, prefix: str, n_q: int, N: int, dynamics: str, driven: bool = False,
-                          determinant: tuple | None = None) -> list:
+                          determinant: int | None = None) -> list:
     """Straight-line stages of one explicit tableau: only its nonzero a_ij and b_i, read from the
     method's coefficient arrays (constant indices, so the compiler folds them). ``driven``: the
     stages read the inputs r (held, or r + c_i dr on a ramp; `input_context`). ``determinant``
-    (dependent speeds eliminated): (the index of det(A_D) in the gauge, the real type); every later
-    stage writes its own gauge, and a stage whose det(A_D) has the other sign than x's, or differs
-    from it by more than DEPENDENT_JUMP, stops the step with LCG_SINGULAR_CONSTRAINTS, as the
-    monitor does between accepted states: the step reaches a singular A_D, which the accepted
-    states alone miss when the step comes back to x's side (found by review: heun at h = 2e-2,
-    whose predictor stage came within 0.0018 L of the horizontal, and dopri5 at 5e-2 turned
-    sympy's non-minimal pendulum back there with status OK)."""
+    (dependent speeds eliminated): the index of det(A_D) in the gauge; every later stage writes its
+    own gauge, and a stage whose det(A_D) has the other sign than x's, or differs from it by more
+    than DEPENDENT_JUMP (``<prefix>_determinant_near``), stops the step with
+    LCG_SINGULAR_CONSTRAINTS, as the monitor does between accepted states: the step reaches a
+    singular A_D, which the accepted states alone miss when the step comes back to x's side
+    (found by review: heun at h = 2e-2, whose predictor stage came within 0.0018 L of the
+    horizontal, and dopri5 at 5e-2 turned sympy's non-minimal pendulum back there with status OK)."""
     name = f"{prefix}_{scheme.name}"
 
     def evaluate(i, state):
@@ -323,11 +323,8 @@ def _explicit_stage_lines(scheme, prefix: str, n_q: int, N: int, dynamics: str, 
                  f"{gauge});",
                  "if (status != LCG_OK) return status;"]
         if i > 0 and determinant is not None:
-            d, real = determinant
-            jump, fabs = _literal(DEPENDENT_JUMP, real), "fabsf" if real == "float" else "fabs"
-            stage, start = f"stage_gauge[{d}]", f"gauge[{d}]"
-            lines.append(f"if (!({stage} * {start} > 0) || {fabs}({stage}) > {jump} * {fabs}({start}) "
-                         f"|| {jump} * {fabs}({stage}) < {fabs}({start})) return LCG_SINGULAR_CONSTRAINTS;")
+            near = f"{prefix}_determinant_near(stage_gauge[{determinant}], gauge[{determinant}])"
+            lines.append(f"if (!{near}) return LCG_SINGULAR_CONSTRAINTS;")
         return lines
 
     if not needed_stages(scheme)[0]:
