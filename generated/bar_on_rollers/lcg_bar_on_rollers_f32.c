@@ -322,7 +322,7 @@ static int lcg_bar_on_rollers_f32_rk4_step(float t, float *x, const float *param
 
 /* Solve the dense system E d = r (size dim) in place by Gaussian elimination with partial
  * pivoting; E and r are overwritten, d is returned in r. Returns 0 when E is singular. */
-static int lcg_bar_on_rollers_f32_dense_solve(int dim, float *E, float *r)
+static int lcg_bar_on_rollers_f32_newton_solve(int dim, float *E, float *r)
 {
     int i, j, k;
     for (k = 0; k < dim; ++k) {
@@ -427,7 +427,7 @@ static int lcg_bar_on_rollers_f32_irk_step(int s, const float *a, const float *b
                 }
             }
         }
-        if (!lcg_bar_on_rollers_f32_dense_solve(S, E, r)) return LCG_NEWTON_FAILED;
+        if (!lcg_bar_on_rollers_f32_newton_solve(S, E, r)) return LCG_NEWTON_FAILED;
         for (i = 0; i < S; ++i) {
             float scaled = fabsf(r[i]) / (1.0F + fabsf(x[i % 2]));
             W[i] += r[i];

@@ -536,7 +536,7 @@ static int lcg_slider_crank_minimal_rk4_step(double t, double *x, const double *
 
 /* Solve the dense system E d = r (size dim) in place by Gaussian elimination with partial
  * pivoting; E and r are overwritten, d is returned in r. Returns 0 when E is singular. */
-static int lcg_slider_crank_minimal_dense_solve(int dim, double *E, double *r)
+static int lcg_slider_crank_minimal_newton_solve(int dim, double *E, double *r)
 {
     int i, j, k;
     for (k = 0; k < dim; ++k) {
@@ -641,7 +641,7 @@ static int lcg_slider_crank_minimal_irk_step(int s, const double *a, const doubl
                 }
             }
         }
-        if (!lcg_slider_crank_minimal_dense_solve(S, E, r)) return LCG_NEWTON_FAILED;
+        if (!lcg_slider_crank_minimal_newton_solve(S, E, r)) return LCG_NEWTON_FAILED;
         for (i = 0; i < S; ++i) {
             double scaled = fabs(r[i]) / (1.0 + fabs(x[i % 2]));
             W[i] += r[i];

@@ -440,7 +440,7 @@ static int lcg_stiff_chain_f32_rk4_step(float t, float *x, const float *paramete
 
 /* Solve the dense system E d = r (size dim) in place by Gaussian elimination with partial
  * pivoting; E and r are overwritten, d is returned in r. Returns 0 when E is singular. */
-static int lcg_stiff_chain_f32_dense_solve(int dim, float *E, float *r)
+static int lcg_stiff_chain_f32_newton_solve(int dim, float *E, float *r)
 {
     int i, j, k;
     for (k = 0; k < dim; ++k) {
@@ -545,7 +545,7 @@ static int lcg_stiff_chain_f32_irk_step(int s, const float *a, const float *b, c
                 }
             }
         }
-        if (!lcg_stiff_chain_f32_dense_solve(S, E, r)) return LCG_NEWTON_FAILED;
+        if (!lcg_stiff_chain_f32_newton_solve(S, E, r)) return LCG_NEWTON_FAILED;
         for (i = 0; i < S; ++i) {
             float scaled = fabsf(r[i]) / (1.0F + fabsf(x[i % 6]));
             W[i] += r[i];

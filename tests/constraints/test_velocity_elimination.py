@@ -378,3 +378,41 @@ def test_a_sweep_member_on_the_singular_heading_gets_its_own_status(sleighs):
     for i, (theta, rate) in enumerate([(0.2, 0.5), (1.0, -0.5)]):
         alone = simulate(system, base | {"theta": theta, "theta_d": rate}, t_end=0.5, h=1e-2).x[-1]
         np.testing.assert_array_equal(result.x_final[2 * i], alone)
+
+
+@pytest.mark.parametrize("name, ratio", [("minus_one", 1), ("minus_half", sp.Rational(1, 2)), ("folded", None)])
+def test_a_constraint_with_a_negative_number_in_the_independent_columns(name, ratio):
+    """Found by review (session 16): A_I = -1 printed "X[0] = --1;" and the build failed. By hand, with
+    L = m x'^2/2 + y'^2/2 - x^2/2 and y' = c x': (m + c^2) x'' = -x; at x = 0.3, x' = 0.5, m = 1 the
+    state's rate is (x', c x', -0.3 / (1 + c^2)). "folded": c = r with r fixed to 1.0 (A_I = -1.0)."""
+    x, y = me.dynamicsymbols("x y")
+    m, r = sp.symbols("m r", positive=True)
+    c = r if ratio is None else ratio
+    model = Model(f"negative_{name}", [x, y], [m, r], kinetic_energy=m * x.diff() ** 2 / 2 + y.diff() ** 2 / 2,
+                  potential_energy=x ** 2 / 2, motion_constraints=[y.diff() - c * x.diff()], dependent_speeds=[y],
+                  parameter_values={m: 1, r: 1})
+    system = compile_model(model, methods=("rk4",), fixed={"r": 1.0} if ratio is None else None)
+    c = 1.0 if ratio is None else float(ratio)
+    np.testing.assert_allclose(make_rhs(system)(0.0, np.array([0.3, 0.2, 0.5])), [0.5, c * 0.5, -0.3 / (1 + c * c)],
+                               rtol=1e-14)
+
+
+def test_every_speed_fixed_by_the_constraints_builds_strictly(tmp_path):
+    """Found by review (session 16): with no independent speed (x' = sin(w t)) the exported C failed
+    -Wall -Wextra -Werror (unused rest_0, M_0_0, F_0, ud). By hand x(1) = (1 - cos 2) / 2 for w = 2."""
+    import subprocess
+
+    t = me.dynamicsymbols._t
+    x = me.dynamicsymbols("x")
+    m, w = sp.symbols("m omega", positive=True)
+    model = Model("driven_only", [x], [m, w], kinetic_energy=m * x.diff() ** 2 / 2, potential_energy=m * x ** 2 / 2,
+                  motion_constraints=[x.diff() - sp.sin(w * t)], dependent_speeds=[x], parameter_values={m: 1, w: 2})
+    system = compile_model(model, methods=("rk4",), cache_dir=tmp_path / "cache")
+    run = simulate(system, {"x": 0.0}, t_end=1.0, h=1e-3)
+    assert run.ok and run.x[-1][0] == pytest.approx((1 - np.cos(2.0)) / 2, abs=1e-12)
+    for name, text in ((system.sources.header_name, system.sources.header),
+                       (system.sources.source_name, system.sources.source)):
+        (tmp_path / name).write_text(text)
+    build = subprocess.run(["gcc", "-std=c99", "-Wall", "-Wextra", "-Werror", "-c", system.sources.source_name,
+                            "-o", "out.o"], cwd=tmp_path, capture_output=True, text=True)
+    assert build.returncode == 0, build.stderr

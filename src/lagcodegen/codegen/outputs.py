@@ -449,7 +449,7 @@ def _difference_jacobian_c(w: KernelWriter) -> dict:
 
 
 def _dependent_speeds_c(w: KernelWriter, kernel) -> dict:
-    """u_dep from A_D u_dep = -(A_I u + b), by LU with partial pivoting (`_dense_solve_function`)."""
+    """u_dep from A_D u_dep = -(A_I u + b), by LU with partial pivoting (`_dense_lu_functions`)."""
     m, real, prefix = w.n_dependent, w.real, w.prefix
     names = ", ".join(s.name for s in w.system.u_dependent)
     body = w.head(kernel) + _dependent_system_lines(w, kernel, "BI")
@@ -947,8 +947,9 @@ def _eliminated_head_lines(w: KernelWriter, kernel, M: dict, mass_lines: list) -
     for i in range(m):
         for k in range(p):
             entry = A.get((i, k), 0)
-            value = w.expr(entry, f'A[{i}][{k}]')
-            negated = zero if entry == 0 else f"-{value}" if entry.is_Atom else f"-({value})"
+            # an atom negated by sympy (found by review: a constraint y' - x' printed "X[0] = --1;"), a sum whole
+            negated = (zero if entry == 0 else w.expr(-entry, f'A[{i}][{k}]') if entry.is_Atom else
+                       f"-({w.expr(entry, f'A[{i}][{k}]')})")
             lines.append(f"X[{i * width + k}] = {negated};")
     lines += [f"X[{i * width + p}] = -({w.expr(e, f'row {i}')});" for (i, _), e in results(kernel, "BI").items()]
     for i in range(m):
@@ -993,6 +994,10 @@ def _eliminated_tail_lines(w: KernelWriter, kernel, M: dict, LD: set) -> list:
     (C^T M C) ud_I = C^T (F - M g) with the reduced M's factors."""
     m, p, n, real, prefix = w.n_dependent, w.n_u, w.n_m, w.real, w.prefix
     width = p + 1
+    if not p:  # every speed fixed by the constraints: no acceleration to solve for, M and F unread (found by
+        # review: they failed -Wall -Wextra -Werror)
+        unread = [f"M_{j}_{k}" for (j, k), e in M.items() if e != 0 or j == k] + [f"F_{j}" for j in range(n)]
+        return [f"(void){name};" for name in unread] + ["(void)ud;", "return LCG_OK;"]
     lines = [f"{real} gD[{m}];", "/* g_D = A_D^-1 gamma: the dependent accelerations' part that ud_I does not give */"]
     lines += [f"gD[{i}] = {w.expr(e, f'gamma[{i}]')};" for (i, _), e in results(kernel, "C").items()]
     lines.append(f"{prefix}_dense_substitute(LU, ipiv, gD, {m}, 1);")
