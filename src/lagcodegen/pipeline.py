@@ -16,6 +16,7 @@ import functools
 import hashlib
 import io
 import json
+import marshal
 import math
 import numbers
 import os
@@ -27,7 +28,7 @@ from dataclasses import replace
 from pathlib import Path
 
 import sympy as sp
-from sympy.core.function import AppliedUndef
+from sympy.core.function import AppliedUndef, UndefinedFunction
 
 from . import __version__
 from .codegen.kernel_text import PART_ASSIGNMENTS
@@ -184,15 +185,12 @@ def _model_entry(model, outputs, fixed, methods, precision, code_options, cache_
         return None
     fields = tuple((f.name, getattr(model, f.name)) for f in dataclasses.fields(model))
     try:
-        buffer = io.BytesIO()
-        pickler = pickle.Pickler(buffer, protocol=4)
-        pickler.fast = True  # as equations_digest: bytes that follow the values
-        pickler.dump((fields, None if outputs is None else list(outputs),
-                      sorted((str(k), _fixed_key(v)) for k, v in (fixed or {}).items()), list(methods)))
+        digest = _values_digest((fields, None if outputs is None else list(outputs),
+                                 sorted((str(k), _fixed_key(v)) for k, v in (fixed or {}).items()), list(methods)))
     except (pickle.PicklingError, TypeError, AttributeError, ValueError, RecursionError):
         return None
     key = cache.source_key({"lagcodegen": __version__, "sympy": sp.__version__,
-                            "model": hashlib.sha256(buffer.getvalue()).hexdigest(),
+                            "model": digest,
                             "options": repr((precision, code_options)), "code": _package_digest()})
     return cache.cache_dir(cache_dir) / "sources" / f"model-{key[:32]}.txt"
 
@@ -293,11 +291,57 @@ def equations_digest(eom: EquationsOfMotion) -> str:
     subexpressions, and in every process (sympy orders the arguments of Add and Mul canonically).
     About 20 times faster than ``srepr`` (0.13 s against 2.3 s for the Whipple bicycle)."""
     fields = tuple((f.name, getattr(eom, f.name)) for f in dataclasses.fields(eom) if f.name != "parameter_values")
+    return _values_digest(fields)
+
+
+class _DigestPickler(pickle.Pickler):
+    """Pickles without a memo (the bytes follow the values, not the identities of shared parts) and
+    notes the user-defined sympy classes it meets: pickle stores a class by its name, so an edited
+    ``class spring(sp.Function)`` (a notebook cell run again) keyed as before and loaded the old
+    kernel (found by review: cos(2) for a stiffness changed to 9, status OK)."""
+
+    def __init__(self, buffer):
+        super().__init__(buffer, protocol=4)
+        self.fast = True
+        self.classes: dict = {}
+
+    def reducer_override(self, obj):
+        if (isinstance(obj, type) and issubclass(obj, sp.Basic) and not isinstance(obj, UndefinedFunction)
+                and not (obj.__module__ or "").startswith("sympy")):
+            name = f"{obj.__module__}.{obj.__qualname__}"
+            self.classes[id(obj)] = (name, obj)  # two classes of one name (two exec'd cells) both count
+            return str, (name,)  # by its name here, its code apart: a class defined in a function pickles too
+        return NotImplemented
+
+
+def _values_digest(values) -> str:
+    """sha256 of ``values`` pickled, and of the code of the user-defined sympy classes they hold."""
     buffer = io.BytesIO()
-    pickler = pickle.Pickler(buffer, protocol=4)
-    pickler.fast = True  # no memo: the bytes follow the values, not the identities of shared parts
-    pickler.dump(fields)
-    return hashlib.sha256(buffer.getvalue()).hexdigest()
+    pickler = _DigestPickler(buffer)
+    pickler.dump(values)
+    digest = hashlib.sha256(buffer.getvalue())
+    for entry in sorted(name.encode() + b"\0" + _class_code(cls) for name, cls in pickler.classes.values()):
+        digest.update(entry)
+    return digest.hexdigest()
+
+
+def _class_code(cls: type) -> bytes:
+    """The methods (code, defaults and the plain values of the globals they read) and the other
+    attributes of ``cls`` and of its bases outside sympy."""
+    parts = []
+    for klass in cls.__mro__:
+        if klass is object or (klass.__module__ or "").startswith("sympy"):
+            continue
+        for name, value in sorted(vars(klass).items()):
+            function = getattr(value, "__func__", value)
+            code = getattr(function, "__code__", None)
+            if code is not None:
+                read = {n: function.__globals__[n] for n in code.co_names if n in function.__globals__}
+                plain = sorted((n, repr(v)) for n, v in read.items() if isinstance(v, (numbers.Number, str, bytes)))
+                parts.append(f"{name}:{function.__defaults__!r}:{plain!r}".encode() + marshal.dumps(code))
+            elif not (name.startswith("__") and name.endswith("__")):
+                parts.append(f"{name}={value!r}".encode())
+    return b"\0".join(parts)
 
 
 @functools.lru_cache(maxsize=1)

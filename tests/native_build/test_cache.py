@@ -479,3 +479,31 @@ def test_an_edited_measurement_under_the_same_name_is_not_served_stale(tmp_path)
                       parameter_values={"m": 1.0, "k": 1.0}, measurements={"y": factor * x})
         run = simulate(compile_model(model, methods=("rk4",), cache_dir=tmp_path), [1.5, 0.0], 0.01, 0.01)
         assert run.measurements[0, 0] == factor * 1.5
+
+
+@pytest.mark.parametrize("route", ["model", "equations"])
+def test_an_edited_user_function_class_is_not_served_stale(tmp_path, route):
+    """Found by review (session 16): pickle keys a class by its name, so a user's sympy Function
+    whose body changed (a notebook cell run again) loaded the kernel of its old body: cos(2) for a
+    stiffness changed from 4 to 9, status OK. Reference: V' = K x gives x = cos(sqrt(K) t) from
+    x = 1 at rest (exact); the model entry and the equations' digest are both keyed."""
+    import math
+
+    import sympy as sp
+    import sympy.physics.mechanics as me
+
+    from lagcodegen import Model, derive_equations
+    from lagcodegen.pipeline import compile_model
+    from lagcodegen.run.simulate import simulate
+
+    x = me.dynamicsymbols("x")
+    m = sp.symbols("m", positive=True)
+    for stiffness in (4.0, 9.0):
+        namespace = {"sp": sp}
+        exec(f"class spring(sp.Function):\n    def fdiff(self, argindex=1):\n        return {stiffness} * self.args[0]\n",
+             namespace)
+        model = Model("user_spring", [x], [m], kinetic_energy=m * x.diff() ** 2 / 2,
+                      potential_energy=namespace["spring"](x), parameter_values={"m": 1.0})
+        source = model if route == "model" else derive_equations(model)
+        run = simulate(compile_model(source, methods=("rk4",), outputs="rhs", cache_dir=tmp_path), {"x": 1.0}, 1.0, 1e-3)
+        assert run.ok and run["x"][-1] == pytest.approx(math.cos(math.sqrt(stiffness)), abs=1e-9)
