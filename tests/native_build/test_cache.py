@@ -507,3 +507,34 @@ def test_an_edited_user_function_class_is_not_served_stale(tmp_path, route):
         source = model if route == "model" else derive_equations(model)
         run = simulate(compile_model(source, methods=("rk4",), outputs="rhs", cache_dir=tmp_path), {"x": 1.0}, 1.0, 1e-3)
         assert run.ok and run["x"][-1] == pytest.approx(math.cos(math.sqrt(stiffness)), abs=1e-9)
+
+
+@needs_cc
+def test_two_models_of_one_prefix_under_rtld_global_keep_their_own_kernels(tmp_path):
+    """Found by review (session 16): with sys.setdlopenflags(RTLD_GLOBAL) (MPI and C++ extension
+    stacks set it) the second of two models named alike ran the first's exported kernels, status OK.
+    References: x = cos(2 t) for V = 2 x^2 (exact), DOP853 at 1e-12 on x'' = -4 x^3 written here."""
+    from scipy.integrate import solve_ivp
+
+    script = textwrap.dedent(f"""
+        import os, sys
+        sys.setdlopenflags(os.RTLD_GLOBAL | os.RTLD_NOW)
+        import sympy as sp, sympy.physics.mechanics as me
+        from lagcodegen import Model
+        from lagcodegen.pipeline import compile_model
+        from lagcodegen.run.simulate import simulate
+        x = me.dynamicsymbols("x")
+        m, k = sp.symbols("m k", positive=True)
+        for V in (k * x**2 / 2, k * x**4 / 4):
+            model = Model("osc", [x], [m, k], kinetic_energy=m * x.diff()**2 / 2, potential_energy=V,
+                          parameter_values={{"m": 1.0, "k": 4.0}})
+            system = compile_model(model, methods=("rk4",), cache_dir={str(tmp_path)!r})
+            print(repr(float(simulate(system, {{"x": 1.0}}, 1.0, 1e-3)["x"][-1])))
+    """)
+    out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0, out.stderr
+    harmonic, quartic = (float(v) for v in out.stdout.split())
+    reference = solve_ivp(lambda t, y: [y[1], -4 * y[0] ** 3], (0, 1), [1, 0], method="DOP853", rtol=1e-12,
+                          atol=1e-12).y[0, -1]
+    assert harmonic == pytest.approx(-0.4161468365471424, abs=1e-9)  # cos(2)
+    assert quartic == pytest.approx(reference, abs=1e-9)

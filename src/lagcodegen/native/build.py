@@ -36,7 +36,15 @@ from ..codegen.printer import mangle
 from ..codegen.render import CSources, KernelLayout
 from . import cache
 from .build_cost import BuildCost, warn_if_expensive
-from .compiler import BuildError, check_python_headers, compile_error, compile_in_parallel, start_kernel_compile, stop
+from .compiler import (
+    KERNEL_FLAGS,
+    BuildError,
+    check_python_headers,
+    compile_error,
+    compile_in_parallel,
+    start_kernel_compile,
+    stop,
+)
 
 __all__ = ["BuildError", "CompiledSystem", "build_module", "compiler_available", "DEFAULT_FLAGS"]
 
@@ -195,7 +203,7 @@ def _key(sources: CSources, flags: list[str], identity: str) -> str:
     return cache.source_key({
         "header_name": sources.header_name, "header": sources.header,
         "source_name": sources.source_name, "source": sources.source, "cdef": sources.cdef,
-        "flags": shlex.join(flags), "compiler": identity,
+        "flags": shlex.join(flags), "kernel_flags": shlex.join(KERNEL_FLAGS), "compiler": identity,
         "python": f"{sys.implementation.cache_tag}-{sysconfig.get_platform()}{_EXT_SUFFIX}",
         "cffi": cffi.__version__, "lagcodegen": __version__,
     })

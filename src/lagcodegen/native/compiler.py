@@ -38,6 +38,11 @@ def check_python_headers(sources) -> None:
                          f"apt-get install python3-dev (Debian/Ubuntu) or dnf install python3-devel")
 
 
+#: the kernels stay inside the module: exported, two models of one C prefix loaded with RTLD_GLOBAL
+#: (MPI and C++ extension stacks set it) called each other's, status OK (found by review)
+KERNEL_FLAGS = ("-fvisibility=hidden",)
+
+
 def start_kernel_compile(tmp: Path, sources, flags, command) -> list:
     """Start compiling the kernels (POSIX) before cffi parses the cdef and writes its wrapper, so
     that the longest jobs start first. A source with integrators is compiled as two translation
@@ -48,7 +53,7 @@ def start_kernel_compile(tmp: Path, sources, flags, command) -> list:
     jobs = []
     for part in parts:
         obj = tmp / f"kernels{part}.o"
-        argv = [*command, *flags, *shared, f"-DLCG_BUILD_PART={part}", "-I", str(tmp), "-c",
+        argv = [*command, *flags, *shared, *KERNEL_FLAGS, f"-DLCG_BUILD_PART={part}", "-I", str(tmp), "-c",
                 str(tmp / sources.source_name), "-o", str(obj)]
         jobs.append((argv, subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True), obj))
     return jobs
