@@ -105,6 +105,10 @@ def compile_model(model: Model | EquationsOfMotion, *, outputs=None, fixed: Mapp
     # one name is that one (a str is a sequence too: "rhs" read as the outputs 'r', 'h', 's')
     outputs = (outputs,) if isinstance(outputs, str) else outputs
     methods = (methods,) if isinstance(methods, str) else methods
+    # once: a generator keyed the entry and was then empty for the build, which the cache kept under
+    # the full list (found by review: "compiled: none" for a later list in the same cache)
+    outputs = None if outputs is None else tuple(outputs)
+    methods = tuple(methods)
     alias = _model_entry(model, outputs, fixed, methods, precision, (trig, lanes, lane_trig), cache_dir)
     stored = _load_sources(*_aliased_sources(alias, cache_dir)) if alias is not None else None
     if stored is not None:

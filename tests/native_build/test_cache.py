@@ -538,3 +538,26 @@ def test_two_models_of_one_prefix_under_rtld_global_keep_their_own_kernels(tmp_p
                           atol=1e-12).y[0, -1]
     assert harmonic == pytest.approx(-0.4161468365471424, abs=1e-9)  # cos(2)
     assert quartic == pytest.approx(reference, abs=1e-9)
+
+
+def test_methods_and_outputs_given_as_generators(tmp_path):
+    """Found by review (session 16): a generator keyed the model entry, was then empty for the build,
+    and the cache kept a kernel of no methods under the list: a later methods=["rk4"] in the same
+    cache compiled none. Reference: x = cos(2 t) (exact) for k = 4, m = 1."""
+    import math
+
+    import sympy as sp
+    import sympy.physics.mechanics as me
+
+    from lagcodegen import Model
+    from lagcodegen.pipeline import compile_model
+    from lagcodegen.run.simulate import simulate
+
+    x = me.dynamicsymbols("x")
+    m, k = sp.symbols("m k", positive=True)
+    model = Model("osc_generators", [x], [m, k], kinetic_energy=m * x.diff() ** 2 / 2, potential_energy=k * x ** 2 / 2,
+                  parameter_values={"m": 1.0, "k": 4.0})
+    first = compile_model(model, methods=(name for name in ["rk4"]), outputs=(o for o in ["rhs"]), cache_dir=tmp_path)
+    second = compile_model(model, methods=["rk4"], outputs=["rhs"], cache_dir=tmp_path)
+    assert first.layout.methods == second.layout.methods == ("rk4",)
+    assert simulate(second, {"x": 1.0}, 1.0, 1e-3)["x"][-1] == pytest.approx(math.cos(2.0), abs=1e-9)
