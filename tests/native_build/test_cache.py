@@ -561,3 +561,57 @@ def test_methods_and_outputs_given_as_generators(tmp_path):
     second = compile_model(model, methods=["rk4"], outputs=["rhs"], cache_dir=tmp_path)
     assert first.layout.methods == second.layout.methods == ("rk4",)
     assert simulate(second, {"x": 1.0}, 1.0, 1e-3)["x"][-1] == pytest.approx(math.cos(2.0), abs=1e-9)
+
+
+def test_an_interrupted_build_stops_its_compilers(tmp_path, monkeypatch):
+    """Found by review (session 16): a KeyboardInterrupt (a Jupyter interrupt) while the compilers
+    ran left them running to the end: minutes of cc1 for a big model. Here the kernel's and the
+    wrapper's "compilers" sleep for 60 s; after the interrupt both must be gone."""
+    from lagcodegen.native import compiler
+
+    command = [sys.executable, "-c", "import time; time.sleep(60)"]  # the flags after it land in sys.argv
+    sleeper = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    kernels = [(command, sleeper, tmp_path / "kernels0.o")]
+    started = []
+    real_popen, real_communicate = subprocess.Popen, subprocess.Popen.communicate
+
+    def popen(*args, **kwargs):
+        started.append(real_popen(*args, **kwargs))
+        return started[-1]
+
+    interrupted = []
+
+    def communicate(self, *args, **kwargs):
+        if not interrupted:
+            interrupted.append(self)
+            raise KeyboardInterrupt
+        return real_communicate(self, *args, **kwargs)
+
+    class Builder:
+        def emit_c_code(self, path):
+            Path(path).write_text("int placeholder;\n")
+
+    monkeypatch.setattr(compiler.subprocess, "Popen", popen)
+    monkeypatch.setattr(real_popen, "communicate", communicate)
+    with pytest.raises(KeyboardInterrupt):
+        compiler.compile_in_parallel(Builder(), tmp_path, kernels, "module", ["-O3"], command, "module.so")
+    for process in [sleeper, *started]:
+        assert process.wait(timeout=10) is not None  # killed, not left to sleep 60 s
+
+
+@needs_cc
+def test_a_compiler_out_of_disk_falls_back_to_a_temporary_cache(cache_root, tmp_path, monkeypatch):
+    """Found by review (session 16): when the sources fit on a nearly full disk but gcc's object file
+    did not, the build died with a compiler dump, where the cache's docstring promises the temporary
+    directory and a CacheDirWarning (as when Python's own write fails). The compiler here runs out of
+    disk for every file under the cache root (as a full device would) and works elsewhere."""
+    gcc = shutil.which("gcc") or shutil.which("cc")
+    wrapper = tmp_path / "fullcc"
+    wrapper.write_text(f"#!/bin/sh\ncase \"$*\" in *{cache_root}*) echo 'fatal error: error writing to "
+                       f"kernels1.o: No space left on device' >&2; exit 1;; esac\nexec {gcc} \"$@\"\n")
+    wrapper.chmod(0o755)
+    monkeypatch.setattr(cache, "_WARNED", set())
+    with pytest.warns(cache.CacheDirWarning, match=str(cache_root)):
+        system = build_module(tiny_sources("full-disk"), compiler=str(wrapper))
+    assert call_add(system, [0.5]) == [1.5]
+    assert not system.path.is_relative_to(cache_root)

@@ -8,6 +8,7 @@ that the `BuildError` shows the compiler's own errors, the command and the kept 
 from __future__ import annotations
 
 import contextlib
+import errno
 import io
 import os
 import shlex
@@ -87,18 +88,35 @@ def compile_in_parallel(ffibuilder, tmp: Path, kernels: list, module_name, flags
     wrapper_flags = [f for f in flags if not f.startswith("-O")] + ["-O0"]
     argv = [*command, *wrapper_flags, *shared, "-I", str(tmp), "-I", include, "-c", str(wrapper),
             "-o", str(tmp / "wrapper.o")]
-    jobs = [*kernels, (argv, subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True),
-                       tmp / "wrapper.o")]
-    outputs = [process.communicate()[0] for _, process, _ in jobs]
+    try:
+        jobs = [*kernels, (argv, subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True),
+                           tmp / "wrapper.o")]
+    except BaseException:
+        stop(kernels)
+        raise
+    try:
+        outputs = [process.communicate()[0] for _, process, _ in jobs]
+    except BaseException:  # found by review: after a Ctrl-C the compilers ran on to the end
+        stop(jobs)
+        raise
     for (argv, process, _), output in zip(jobs, outputs):
         if process.returncode != 0:
+            _raise_if_full(output, tmp)
             raise cffi.VerificationError(f"{shlex.join(argv)}\n{output}")
     link_flags = shlex.split(sysconfig.get_config_var("LDSHARED") or "cc -shared")[1:]
     link = [*command, *link_flags, *[str(obj) for _, _, obj in jobs], "-o", str(tmp / so_name), "-lm"]
     run = subprocess.run(link, capture_output=True, text=True)
     if run.returncode != 0:
+        _raise_if_full(run.stderr, tmp)
         raise cffi.VerificationError(f"{shlex.join(link)}\n{run.stderr}")
     return tmp / so_name
+
+
+def _raise_if_full(output: str, tmp: Path) -> None:
+    """A compiler or linker that ran out of disk: the OSError the cache's fallback to a temporary
+    directory answers, as it does when Python's own writes fail (found by review: a compiler dump)."""
+    if "No space left on device" in output:
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(tmp))
 
 
 def compile_error(sources, kept: Path, module_name, flags, command, exc) -> BuildError:
