@@ -615,3 +615,11 @@ def test_a_compiler_out_of_disk_falls_back_to_a_temporary_cache(cache_root, tmp_
         system = build_module(tiny_sources("full-disk"), compiler=str(wrapper))
     assert call_add(system, [0.5]) == [1.5]
     assert not system.path.is_relative_to(cache_root)
+
+
+def test_a_compiler_that_writes_nothing_is_named(cache_root):
+    """Found by review (session 16): CC=true (exit 0, no output) ended in a bare FileNotFoundError
+    naming a temporary path, which the CLI reported as a bad command line (exit 2)."""
+    with pytest.raises(BuildError, match=r"the C compiler \S*true reported success for model .* but wrote no "
+                                         r".*; set CC to a working C compiler"):
+        build_module(tiny_sources("writes-nothing"), compiler=shutil.which("true"))

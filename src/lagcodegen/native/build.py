@@ -338,6 +338,9 @@ def _compile_entry(job: _Job, root: Path, entry: Path) -> None:
         else:
             with _compiler_env(job.compiler):
                 built = Path(ffibuilder.compile(tmpdir=str(tmp), verbose=False))
+        if not built.is_file():  # found by review: CC=true "built" nothing, then a bare FileNotFoundError
+            raise BuildError(f"the C compiler {shlex.join(job.command)} reported success for model "
+                             f"{sources.layout.model!r} but wrote no {built.name}; set CC to a working C compiler")
         if built != tmp / so_name:
             os.replace(built, tmp / so_name)
         for item in tmp.iterdir():  # drop object files and distutils' build tree
