@@ -133,12 +133,28 @@ def test_unusable_output_paths_are_refused_before_running(tmp_path, capsys):
         (["--out", tmp_path / "run.dat"], ["--out", "run.dat", "ending in .npz", "run.dat.npz"]),
         (["--plot", tmp_path / "run.xyz"], ["--plot", "run.xyz", "'xyz' is not one matplotlib writes", "png"]),
         (["--plot", tmp_path / "run"], ["--plot", "'(none)'"]),
+        # found by review (session 16): numpy appends .npz to run.NPZ (its test is case-sensitive)
+        (["--out", tmp_path / "run.NPZ"], ["--out", "run.NPZ", "ending in .npz", "run.NPZ.npz"]),
     ]
     for extra, culprits in cases:
         message = one_line_error(["simulate", *DP, *extra], capsys)
         for culprit in culprits:
             assert culprit in message, (culprit, message)
     assert a_file.read_text() == "" and not (tmp_path / "missing").exists()
+
+
+def test_a_pgf_figure_without_its_tex_is_refused_before_running(tmp_path, capsys, monkeypatch):
+    # found by review (session 16): the whole run, then a 98-line traceback ("'xelatex' not found")
+    import shutil
+
+    import matplotlib
+
+    which = shutil.which
+    monkeypatch.setattr(shutil, "which", lambda name, *args, **kwargs: None if name.endswith("latex")
+                        else which(name, *args, **kwargs))
+    message = one_line_error(["simulate", *DP, "--plot", tmp_path / "run.pgf"], capsys)
+    tex = matplotlib.rcParams["pgf.texsystem"]
+    assert "--plot" in message and f"{tex}, which is not installed" in message, message
 
 
 def test_read_only_directory_is_refused(tmp_path, capsys):

@@ -122,15 +122,21 @@ def check_output_file(path: str | None, option: str, kind: str = "npz") -> None:
     if not target.parent.is_dir():
         raise UsageError(f"{option} {path}: {target.parent} is not an existing directory")
     suffix = target.suffix.lower().lstrip(".")
-    if kind == "npz" and suffix != "npz":
+    if kind == "npz" and target.suffix != ".npz":  # numpy's test is case-sensitive (found by review: run.NPZ)
         raise UsageError(f"{option} {path}: give a file name ending in .npz (numpy would write {path}.npz)")
     if kind == "figure":
+        import shutil
+
+        import matplotlib
         from matplotlib.figure import Figure
 
         formats = Figure().canvas.get_supported_filetypes()
         if suffix not in formats:
             raise UsageError(f"{option} {path}: the figure format {suffix or '(none)'!r} is not one matplotlib "
                              f"writes ({', '.join(sorted(formats))})")
+        tex = matplotlib.rcParams["pgf.texsystem"]
+        if suffix == "pgf" and shutil.which(tex) is None:  # found by review: a traceback after the whole run
+            raise UsageError(f"{option} {path}: matplotlib writes .pgf with {tex}, which is not installed")
     from ..run.arguments import unwritable
 
     reason = unwritable(target)
