@@ -263,6 +263,11 @@ class Model:
     def _check_name(self) -> None:
         if not isinstance(self.name, str) or not self.name.strip():
             raise ModelError(f"model name must be a non-empty string, got {self.name!r}")
+        try:  # found by review: a lone surrogate ("osc\udcff") passed here, then a bare UnicodeEncodeError
+            self.name.encode("utf-8")
+        except UnicodeEncodeError as err:
+            raise ModelError(f"model name {self.name!r} is not valid Unicode text ({err.reason} at position "
+                             f"{err.start})") from None
 
     def _check_parameters(self) -> None:
         seen = set()

@@ -100,6 +100,9 @@ def test_empty_model_name_is_a_model_error():
     for name in ("", "   "):
         with pytest.raises(ModelError, match="model name must be a non-empty string"):
             Model(name, [q], (), kinetic_energy=q.diff(TIME) ** 2 / 2)
+    # found by review (session 16): accepted, then a bare UnicodeEncodeError in the cache key
+    with pytest.raises(ModelError, match=r"model name 'osc\\udcff' is not valid Unicode text \(surrogates not allowed"):
+        Model("osc\udcff", [q], (), kinetic_energy=q.diff(TIME) ** 2 / 2)
 
 
 # --- compiler and headers ---------------------------------------------------------------------
