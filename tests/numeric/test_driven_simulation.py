@@ -573,3 +573,40 @@ def test_a_swept_input_that_inputs_does_not_name_has_base_one(tmp_path):
     for member, force in enumerate((1.0, 3.0)):
         run = simulate(system, {"x": 0.0}, t_end=1.0, h=1e-3, inputs={"F": force, "G": 0.5})
         np.testing.assert_allclose(result.x_final[member], run.x[-1], rtol=1e-14)
+
+
+class _TensorLike:
+    """A result numpy cannot read: as a torch tensor that requires grad, its __array__ raises."""
+
+    def __array__(self, *args, **kwargs):
+        raise RuntimeError("Can't call numpy() on Tensor that requires grad")
+
+
+@pytest.mark.parametrize("result, error", [([10 ** 400], "OverflowError"), (_TensorLike(), "RuntimeError")])
+def test_a_callable_result_numpy_cannot_read_stops_the_run(oscillator, result, error):
+    """Found by review (session 16): the conversion raised past the callback into cffi, which
+    returned 0 (OK): the run went on with F unwritten (6.9e-310, stack memory), status OK. Expected:
+    INPUT_FAILED at the first step, the exception named, as for a callable that raises itself."""
+    with pytest.warns(RuntimeWarning, match="stopped at step 1"):
+        run = simulate(oscillator, {"x": 1.0}, t_end=1.0, h=1e-2, inputs=lambda t, state: result)
+    assert run.status == Status.INPUT_FAILED and error in run.detail, run.detail
+
+
+def test_an_input_beyond_the_float_range_is_named(tmp_path, driven_oscillator):
+    """Found by review (session 16): 1e39 (finite in double, beyond float's 3.4e38) stopped a float
+    run at step 1 with no word of the input, numpy warning of an overflow in a cast; and the measurement
+    reading F was then called undefined, though the input had failed, not its expression."""
+    system = compile_model(driven_oscillator("driven_float_range", measurements={"power": lambda x, F, m, k, c: F * x}),
+                           methods=("rk4",), precision="float", cache_dir=tmp_path)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)  # no "overflow encountered in cast"
+        for inputs in (1e39, np.full(101, 1e39), {"F": 1e39}):
+            with pytest.raises(InputError, match=r"input 'F' = 1e\+39 is beyond the range of the float kernel"):
+                simulate(system, {"x": 0.5}, t_end=1.0, h=1e-2, inputs=inputs)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        run = simulate(system, {"x": 0.5}, t_end=1.0, h=1e-2, inputs=lambda t, state: [1e39])
+    assert run.status == Status.NONFINITE_INPUT
+    assert run.detail == "input 'F' = 1e+39 at t = 0 is beyond the range of the float kernel"
+    assert not [w for w in caught if "undefined" in str(w.message) or "overflow" in str(w.message)], \
+        [str(w.message) for w in caught]

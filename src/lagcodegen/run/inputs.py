@@ -252,7 +252,8 @@ class CallableInputs:
         self.error: BaseException | None = None
         ffi = system.ffi
         self._ffi = ffi
-        self.callback = ffi.callback(f"{system.layout.prefix}_input_fn", self._call)
+        # error=: what C gets should an exception still escape _call (cffi's default 0 is LCG_OK)
+        self.callback = ffi.callback(f"{system.layout.prefix}_input_fn", self._call, error=int(Status.INPUT_FAILED))
 
     def reraise(self) -> None:
         """Raise a KeyboardInterrupt or SystemExit the callable raised (the run stopped at it)."""
@@ -272,6 +273,17 @@ class CallableInputs:
             self.error = error  # Ctrl-C or SystemExit: the run stops here and `reraise` raises it after
             return self._fail(Status.INPUT_FAILED, f"the input callable raised {type(error).__name__}: {error} "
                                                    f"at t = {float(t):g}")
+        try:
+            return self._store(result, float(t), r_pointer)
+        except BaseException as error:  # noqa: BLE001 - found by review: an int of 400 digits (OverflowError) or a
+            # tensor whose __array__ raises escaped into cffi, which returned 0 (OK) with r unwritten
+            self.error = error
+            return self._fail(Status.INPUT_FAILED, f"reading the input callable's result at t = {float(t):g} raised "
+                                                   f"{type(error).__name__}: {error}")
+
+    def _store(self, result, t: float, r_pointer) -> int:
+        """Check the callable's ``result`` and write it to ``r_pointer``; a status code."""
+        ffi, dtype = self._ffi, self.dtype
         try:
             kind = np.asarray(result).dtype.kind
         except (TypeError, ValueError):  # ragged: refused below
@@ -293,9 +305,16 @@ class CallableInputs:
             return self._fail(Status.INPUT_FAILED, f"the input callable returned {shape!r} at t = {float(t):g}; "
                                                    f"expected {len(self.names)} value(s) for {', '.join(self.names)}")
         bad = [name for name, v in zip(self.names, values) if not math.isfinite(v)]
-        out = np.frombuffer(ffi.buffer(r_pointer, len(self.names) * np.dtype(dtype).itemsize), dtype=dtype)
-        out[:] = values
         if bad:
             return self._fail(Status.NONFINITE_INPUT, f"input {bad[0]!r} = {values[self.names.index(bad[0])]} at "
                                                       f"t = {float(t):g}")
+        with np.errstate(over="ignore"):
+            cast = values.astype(dtype)
+        beyond = [name for name, v in zip(self.names, cast) if not math.isfinite(v)]
+        if beyond:  # found by review: 1e39 into a float kernel stopped with no word of the input
+            value = float(values[self.names.index(beyond[0])])
+            return self._fail(Status.NONFINITE_INPUT, f"input {beyond[0]!r} = {value!r} at t = {float(t):g} is beyond "
+                                                      "the range of the float kernel")
+        out = np.frombuffer(ffi.buffer(r_pointer, len(self.names) * np.dtype(dtype).itemsize), dtype=dtype)
+        out[:] = cast
         return int(Status.OK)

@@ -37,7 +37,7 @@ from .drift import (  # noqa: F401
     warn_if_configuration_drifted,
     warn_if_drifted,
 )
-from .inputs import CallableInputs, InputTable, hold_code, is_sampled, resolve_inputs
+from .inputs import CallableInputs, InputError, InputTable, hold_code, is_sampled, resolve_inputs
 
 
 class SimulationError(RuntimeError):
@@ -333,6 +333,12 @@ def simulate(system: CompiledSystem, x0, t_end: float, h: float, method: str = "
     ramp = hold_code(hold)
     check_hold(method, ramp)
     signal = resolve_inputs(system.layout, inputs, t0, h, n_steps, stride, hold)
+    if isinstance(signal, InputTable) and system.layout.precision == "float":
+        beyond = np.argwhere(np.abs(signal.values) > np.finfo(np.float32).max)
+        if beyond.size:  # found by review: the run stopped at step 1 naming no input (as a sweep names it)
+            knot, column = beyond[0]
+            raise InputError(f"input {system.layout.inputs[column]!r} = {float(signal.values[knot, column])!r} is "
+                             "beyond the range of the float kernel")
     if ramp and callable(signal):
         raise ValueError("hold='foh' needs the inputs at the step's end before the step: not for a callable of "
                          "the state; use hold='zoh' or a table")
@@ -372,10 +378,12 @@ def simulate(system: CompiledSystem, x0, t_end: float, h: float, method: str = "
 
 def warn_if_outputs_undefined(trajectory: Trajectory) -> bool:
     """Warn (`UndefinedOutputWarning`, and return True) for each recorded output that is not finite
-    at a sample whose state is: the run's status speaks of the state only (found by review: a
+    at a sample whose state (and inputs) are: the run's status speaks of the state only (found by review: a
     point at (sqrt(x), 0) and a measurement log(x) were NaN at 60 % of a run's samples, status OK,
     no word, and the animation silently left the point out)."""
     finite = np.all(np.isfinite(trajectory.x), axis=1)
+    if trajectory.inputs is not None:  # an input that failed is the run's status, not the expression's (review)
+        finite &= np.all(np.isfinite(trajectory.inputs), axis=1)
     columns = []
     if trajectory.points is not None:
         columns += [(f"point {name!r}", np.all(np.isfinite(trajectory.points[:, j, :]), axis=1))
