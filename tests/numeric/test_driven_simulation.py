@@ -225,7 +225,9 @@ def test_a_feedback_callable_closes_the_loop(oscillator):
                          method="DOP853", rtol=1e-12, atol=1e-12, t_eval=run.t)
     # ZOH of a feedback law: first order in h (h = 1e-3)
     np.testing.assert_allclose(run.x, solution.y.T, atol=3e-3)
-    np.testing.assert_allclose(run["F"], -3.0 * run["x"] - 1.5 * run.x[:, 1], atol=1e-14)
+    # each sample records the F its state gave, the last one the F held over the last step (one call per step)
+    np.testing.assert_allclose(run["F"][:-1], -3.0 * run["x"][:-1] - 1.5 * run.x[:-1, 1], atol=1e-14)
+    assert run["F"][-1] == run["F"][-2]
 
 
 def test_inputs_by_name_merge_tables_and_constants(tmp_path):
@@ -610,3 +612,27 @@ def test_an_input_beyond_the_float_range_is_named(tmp_path, driven_oscillator):
     assert run.detail == "input 'F' = 1e+39 at t = 0 is beyond the range of the float kernel"
     assert not [w for w in caught if "undefined" in str(w.message) or "overflow" in str(w.message)], \
         [str(w.message) for w in caught]
+
+
+def test_a_feedback_callable_is_called_once_per_step(oscillator):
+    """Found by review (session 16): n_steps + 1 calls (one more at t_end, for the last sample), so a
+    stateful controller advanced once more per run (one run of 200 steps and two of 100 differed by
+    1.2e-3), and a reference of one value per step (indexed by round(t / h)) failed a completed run.
+    Expected by counting: one call per step, at its start; the last sample holds the last step's F."""
+    calls = []
+
+    def controller(t, state):
+        calls.append(t)
+        return [-3.0 * state[0] - 1.5 * state[1]]
+
+    whole = simulate(oscillator, {"x": 1.0}, t_end=2.0, h=1e-2, inputs=controller)
+    assert whole.ok and len(calls) == 200 and calls[-1] == pytest.approx(1.99)
+    assert whole["F"][-1] == -3.0 * whole.x[-2, 0] - 1.5 * whole.x[-2, 1]  # held over the last step
+    calls.clear()
+    first = simulate(oscillator, {"x": 1.0}, t_end=1.0, h=1e-2, inputs=controller)
+    second = simulate(oscillator, first.x[-1], t0=1.0, t_end=2.0, h=1e-2, inputs=controller)
+    assert len(calls) == 200
+    np.testing.assert_array_equal(second.x[-1], whole.x[-1])
+    reference = np.linspace(0.0, 1.0, 100)  # one value per step
+    run = simulate(oscillator, {"x": 0.0}, t_end=1.0, h=1e-2, inputs=lambda t, state: [reference[round(t / 1e-2)]])
+    assert run.ok, run.message

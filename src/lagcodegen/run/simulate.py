@@ -283,7 +283,8 @@ def simulate(system: CompiledSystem, x0, t_end: float, h: float, method: str = "
         (a number, or one per input), a mapping name -> constant or table, an array with a row
         per step (``n_steps`` or ``n_steps + 1`` rows) or per stride, a table ``(t, r)`` with
         increasing times covering the run (linear interpolation in C), or a callable
-        ``f(t, x) -> r`` for feedback (a Python call per step: slower). See `inputs.resolve_inputs`.
+        ``f(t, x) -> r`` for feedback (a Python call per step, at its start: slower; the last sample
+        records the inputs held over the last step). See `inputs.resolve_inputs`.
     hold : {"zoh", "foh"}
         ``"zoh"``: the inputs read at a step's start are held over the step (the embedded
         convention); ``"foh"``: the stages take them on the line to the value at the step's end
@@ -506,7 +507,7 @@ def _run(system, x, p, t0, h, n_steps, stride, method, outputs, track_residuals,
     driven, in_out, source = (), None, None
     if layout.inputs:
         in_out = np.full((n_out, len(layout.inputs)), np.nan, dtype=dtype)
-        driven, source = _input_arguments(system, signal, ramp)
+        driven, source = _input_arguments(system, signal, ramp, t0 + n_steps * h, h)
         driven += (ptr(in_out),)
     y_out = None
     if layout.measurements:
@@ -536,12 +537,12 @@ def _run(system, x, p, t0, h, n_steps, stride, method, outputs, track_residuals,
     return trajectory
 
 
-def _input_arguments(system: CompiledSystem, signal, ramp: int) -> tuple:
+def _input_arguments(system: CompiledSystem, signal, ramp: int, t_end: float, h: float) -> tuple:
     """The driver's (input function, context, hold) for a table or a callable, and what keeps
     the cffi objects alive for the call (the table's arrays, the callback)."""
     ffi, prefix = system.ffi, system.layout.prefix
     if callable(signal) and not isinstance(signal, InputTable):
-        source = CallableInputs(system, signal)
+        source = CallableInputs(system, signal, final_time=t_end, h=abs(h))
         return (source.callback, ffi.NULL, ramp), source
     dtype = real_dtype(system)
     times = np.ascontiguousarray(signal.times, dtype=dtype)
