@@ -145,6 +145,7 @@ def export_fmu(model, path, *, method: str = "rk4", step: float = 1e-3, x0=None,
     files = {f"sources/{sources.header_name}": sources.header, f"sources/{sources.source_name}": sources.source,
              f"sources/{wrapper_name}": wrapper}
     about = dict(model_name=layout.model, identifier=layout.prefix, tool=f"lagcodegen {__version__}", step=step,
+                 constrained=bool(layout.n_constraints),
                  description=f"{layout.model}: Lagrange's equations, {method} at step_size in Co-Simulation")
     if fmi_version == "2.0":
         description = model_description(table, guid=guid, sources=(sources.source_name, wrapper_name), **about)
