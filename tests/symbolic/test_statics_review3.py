@@ -190,3 +190,25 @@ def test_statics_arguments_name_the_culprit():
     sleigh = Model("sleigh", [x, y], [m], kinetic_energy=m * (x.diff() ** 2 + y.diff() ** 2) / 2,
                    motion_constraints=[y.diff() - x.diff()], dependent_speeds=["y"])
     assert sleigh.dependent_speeds == (y,)
+
+
+def test_a_linearization_undefined_at_the_point_is_named():
+    """Found by review (session 16, helper-60): a measurement 1/x at x = 0 gave C = [[zoo, 0]] with no
+    word (symbolic) or "Cannot convert complex to float" (values=); a complex or symbolic r0 raised
+    the same bare TypeError. By hand d(1/x)/dx = -1/x^2 is infinite at x = 0."""
+    from lagcodegen.statics.state_space import linearize_state
+
+    x, force = me.dynamicsymbols("x F")
+    k = sp.Symbol("k", positive=True)
+    eom = derive_equations(Model("inverse_measured", [x], [m, k], kinetic_energy=m * x.diff() ** 2 / 2,
+                                 potential_energy=k * x ** 2 / 2, generalized_forces={x: force}, inputs=[force],
+                                 measurements={"inverse": 1 / x}, parameter_values={"m": 1.0, "k": 4.0}))
+    for values in ({}, None):
+        with pytest.raises(ValueError, match=r"model 'inverse_measured' is undefined at x0 = \[0, 0\], r0 = \[0\]: "
+                                             r"C = dh/dx\[0, 0\] = zoo"):
+            linearize_state(eom, [0, 0], [0], values=values)
+    with pytest.raises(ValueError, match=r"r0 entry for F must be real"):
+        linearize_state(eom, [1, 0], [1j], values={})
+    with pytest.raises(ValueError, match=r"r0 entry for F holds z, which is no parameter"):
+        linearize_state(eom, [1, 0], [sp.Symbol("z")], values={})
+    assert linearize_state(eom, [2.0, 0.0], [0.0], values={}).C[0, 0] == pytest.approx(-0.25)  # -1/x^2 at x = 2

@@ -146,8 +146,14 @@ def linearize_state(eom: EquationsOfMotion, x0: Any, r0: Any = None, values: Map
     if eom.n_dependent:
         x0 = _with_dependent_speeds(eom, x0, values, t0)
     point = _state_point(eom, x0)
+    if eom.inputs and r0 is None:
+        raise ValueError(f"model {eom.name!r} has inputs {', '.join(map(str, eom.inputs))}: pass r0")
+    held = input_point(eom, r0) if eom.inputs else ()
+    if not eom.inputs and r0 is not None and len(np.atleast_1d(r0)) != 0:
+        raise ValueError(f"model {eom.name!r} has no inputs, got r0={r0!r}")
     if values is not None:  # numbers, or expressions in the parameters that values= gives
-        for what, value in [(f"x0 entry for {s}", v) for s, v in zip(states, point)] + [("t0", t0)]:
+        entries = [(f"x0 entry for {s}", v) for s, v in zip(states, point)] + [("t0", t0)]
+        for what, value in entries + [(f"r0 entry for {s}", v) for s, v in zip(eom.inputs, held)]:
             value = sp.sympify(value)
             stray = sorted(map(str, value.free_symbols - set(eom.parameters)))
             if stray:
@@ -155,11 +161,6 @@ def linearize_state(eom: EquationsOfMotion, x0: Any, r0: Any = None, values: Map
                                  "with values= the point is numeric")
             if value.is_real is False or value.has(sp.I):
                 raise ValueError(f"{what} must be real, got {value}")
-    if eom.inputs and r0 is None:
-        raise ValueError(f"model {eom.name!r} has inputs {', '.join(map(str, eom.inputs))}: pass r0")
-    held = input_point(eom, r0) if eom.inputs else ()
-    if not eom.inputs and r0 is not None and len(np.atleast_1d(r0)) != 0:
-        raise ValueError(f"model {eom.name!r} has no inputs, got r0={r0!r}")
     at = dict(zip(states, point)) | dict(zip(eom.inputs, held)) | {eom.t: sp.sympify(t0)}
     M, F, K = (sp.Matrix(X) for X in (eom.mass_matrix, eom.forcing, eom.kinematics))
     r = list(eom.inputs)
@@ -179,6 +180,8 @@ def linearize_state(eom: EquationsOfMotion, x0: Any, r0: Any = None, values: Map
         _check_smooth(eom, matrix.xreplace(at), name)
     if values is None:
         here = {name: matrix.xreplace(at) for name, matrix in parts.items()}
+        for name, matrix in here.items():
+            _check_defined(eom, name, matrix, point, held)
         dM_here = [X.xreplace(at) for X in dM]
         solve = lambda rhs: here["M"].LUsolve(rhs)  # noqa: E731
         try:
@@ -193,8 +196,11 @@ def linearize_state(eom: EquationsOfMotion, x0: Any, r0: Any = None, values: Map
                           sp.ImmutableMatrix(sp.simplify(B)), sp.ImmutableMatrix(sp.simplify(here["dh/dx"])),
                           sp.ImmutableMatrix(sp.simplify(here["dh/dr"])), names)
     vals = resolve_values(eom, values)
-    number = lambda X, what: np.array(  # noqa: E731
-        substitute_values(eom, X.xreplace(at), vals, f"linearization: {what}").evalf(), dtype=float)
+
+    def number(X, what):
+        value = substitute_values(eom, X.xreplace(at), vals, f"linearization: {what}").evalf()
+        _check_defined(eom, what, value, point, held)
+        return np.array(value, dtype=float)
     if eom.m:
         return _constrained(eom, states, point, held, at, vals, number, parts, t0)
     here = {name: number(matrix, name) for name, matrix in parts.items()}
@@ -214,6 +220,19 @@ def linearize_state(eom: EquationsOfMotion, x0: Any, r0: Any = None, values: Map
     return StateSpace(states, tuple(r), tuple(map(as_float, point)), tuple(map(as_float, held)),
                       as_float(t0), A, B, here["dh/dx"].reshape(len(names), eom.n_state),
                       here["dh/dr"].reshape(len(names), len(r)), names)
+
+
+def _check_defined(eom: EquationsOfMotion, name: str, matrix: sp.Matrix, point, held) -> None:
+    """A ValueError naming the first entry of ``matrix`` that is infinite or undefined at the point
+    (found by review: a measurement 1/x at x = 0 gave C = [[zoo, 0]] with no word, and with values=
+    numpy's "Cannot convert complex to float", naming nothing)."""
+    for (i, j), entry in np.ndenumerate(np.array(sp.Matrix(matrix).tolist(), dtype=object).reshape(matrix.shape)):
+        entry = sp.sympify(entry)
+        if entry.has(sp.zoo, sp.nan, sp.oo, -sp.oo) or (entry.is_number and entry.is_real is False):
+            at = f"x0 = {list(point)}" + (f", r0 = {list(held)}" if held else "")
+            name = {"dh/dx": "C = dh/dx", "dh/dr": "D = dh/dr"}.get(name, name)
+            raise ValueError(f"the linearization of model {eom.name!r} is undefined at {at}: {name}[{i}, {j}] = "
+                             f"{entry} (an expression of the model is not differentiable or infinite there)")
 
 
 def _check_finite(eom: EquationsOfMotion, matrices: dict, values: Mapping) -> None:
