@@ -636,3 +636,13 @@ def test_a_feedback_callable_is_called_once_per_step(oscillator):
     reference = np.linspace(0.0, 1.0, 100)  # one value per step
     run = simulate(oscillator, {"x": 0.0}, t_end=1.0, h=1e-2, inputs=lambda t, state: [reference[round(t / 1e-2)]])
     assert run.ok, run.message
+
+
+def test_an_input_given_as_a_parameter_or_state_is_named_as_an_input(oscillator):
+    """Found by review (session 16): "unknown parameter 'F'" and "unknown state variable(s) ['F']"
+    for the model's own input."""
+    with pytest.raises(ValueError, match=r"'F' is an input of model 'driven_oscillator', not a parameter: pass it "
+                                         r"in inputs="):
+        simulate(oscillator, {"x": 1.0}, t_end=0.1, h=1e-2, params={"F": 1.0}, inputs=0.0)
+    with pytest.raises(ValueError, match=r"'F': input\(s\) of model 'driven_oscillator', not in the state"):
+        simulate(oscillator, {"x": 1.0, "F": 1.0}, t_end=0.1, h=1e-2, inputs=0.0)

@@ -156,6 +156,8 @@ def parameter_vector(system: CompiledSystem, params: Mapping | None = None) -> n
         if name in fixed:
             raise ValueError(f"parameter {name!r} is fixed at build time; free parameters: "
                              f"{', '.join(layout.parameters) or 'none'}")
+        if name in layout.inputs:  # found by review: "unknown parameter 'F'" for the model's own input
+            raise ValueError(f"{name!r} is an input of model {layout.model!r}, not a parameter: pass it in inputs=")
         if name not in layout.parameters:
             raise ValueError(f"unknown parameter {name!r}; free parameters: {', '.join(layout.parameters) or 'none'}")
     given = dict(zip(given, real_values(given.values(), given, "parameter")))
@@ -204,6 +206,10 @@ def initial_state(system: CompiledSystem, x0) -> np.ndarray:
         if dependent:
             raise ValueError(f"{', '.join(dependent)}: dependent speed(s), computed from the velocity constraints "
                              f"at every evaluation, not in the state; state: {', '.join(names)}")
+        inputs = [k for k in unknown if k in layout.inputs]
+        if inputs:
+            raise ValueError(f"{', '.join(map(repr, inputs))}: input(s) of model {layout.model!r}, not in the state: "
+                             "pass them in inputs=")
         if unknown:
             raise ValueError(f"unknown state variable(s) {unknown}; state: {', '.join(names)}")
         missing = [c for c in layout.coordinates if c not in x0]
