@@ -679,3 +679,15 @@ def test_an_output_undefined_at_a_finite_state_is_warned(driven_oscillator, fmi_
                           logger=lambda *args: messages.append(repr(args)))
     assert np.isnan(result["root"][-1]) and not np.isnan(result["root"][0])
     assert any("is NaN or infinite at a finite state" in m for m in messages), messages
+
+
+def test_a_model_exchange_error_speaks_of_the_state_not_of_steps(pendulum_fmu, fmi_version):
+    """Was: with l2 = 0 (by hand the mass matrix loses rank: the second bob's inertia m2 l2^2 = 0), the
+    derivatives' error said "a step changed its pivots ... a smaller h tells", where no step is taken."""
+    messages: list = []
+    with pytest.raises(Exception, match="GetDerivatives|right-hand side"):
+        simulate_fmu(str(pendulum_fmu), stop_time=0.1, fmi_type="ModelExchange", start_values={"l2": 0.0},
+                     logger=lambda *args: messages.append(repr(args)))
+    derivative_errors = [m for m in messages if "Derivatives" in m]
+    assert derivative_errors and all("at this state with these parameter values" in m and "smaller h" not in m
+                                     for m in derivative_errors), messages
