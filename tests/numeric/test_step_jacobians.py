@@ -206,3 +206,12 @@ def test_a_step_jacobian_without_an_explicit_method_is_refused(driven_oscillator
     for methods in ((), ("implicit_midpoint",)):
         with pytest.raises(EmitError, match="output 'step_jacobian' is the Jacobian of an explicit step"):
             render_sources(system, "double", methods=list(methods))
+
+
+def test_symplectic_euler_is_named_as_having_no_step_jacobian(tmp_path, driven_oscillator):
+    """Found by review (session 16): the refusal said "compile it with ... an explicit method", and
+    symplectic Euler is one: it has no step Jacobian kernel."""
+    plant = compile_model(driven_oscillator("jac_symplectic"), methods=("rk4", "symplectic_euler"),
+                          outputs=("rhs", "step_jacobian"), cache_dir=tmp_path)
+    with pytest.raises(ValueError, match=r"no step Jacobian for 'symplectic_euler'.*symplectic_euler has none"):
+        step_jacobians(plant, [0.1, 0.0], {}, 1e-2, method="symplectic_euler", r=[0.0])

@@ -851,7 +851,8 @@ def step_jacobians(system: CompiledSystem, x, p, h: float, method: str = "rk4", 
     name = f"{layout.prefix}_step_jacobian_{method}"
     if name not in layout.functions:
         raise ValueError(f"model {layout.model!r} has no step Jacobian for {method!r}: compile it with "
-                         "outputs=(..., 'step_jacobian') and an explicit method")
+                         "outputs=(..., 'step_jacobian') and an explicit Runge-Kutta method (rk4, dopri5, ...; "
+                         "symplectic_euler has none)")
     dtype, size, n_r = real_dtype(system), layout.n_state, len(layout.inputs)
     state = np.array(initial_state(system, x), dtype=dtype)
     p = kernel_parameters(system, p)
