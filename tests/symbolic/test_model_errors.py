@@ -229,3 +229,21 @@ def test_a_notebook_shows_large_equations_as_text():
     small = derive_equations(catalog.example("double_pendulum"))
     assert small._repr_latex_().startswith("$\\displaystyle")
     assert derive_equations(catalog.pendulum_chain(12))._repr_latex_() is None
+
+
+def test_an_acceleration_in_a_kane_measurement_is_named_as_such():
+    """Found by review (session 16): the refusal spoke of "a constraint on the accelerations"."""
+    import sympy.physics.mechanics as me
+
+    q, u = me.dynamicsymbols("q u")
+    mass = sp.Symbol("m", positive=True)
+    N, O = me.ReferenceFrame("N"), me.Point("O")
+    O.set_vel(N, 0)
+    P = O.locatenew("P", q * N.x)
+    P.set_vel(N, u * N.x)
+    kane = me.KanesMethod(N, [q], [u], kd_eqs=[q.diff() - u])
+    kane.kanes_equations([me.Particle("p", P, mass)], [(P, -q * N.x)])
+    with pytest.raises(ModelError, match=r"measurement 'a' contains the acceleration .*: only coordinates, speeds "
+                                         r"and time may appear here \(measure what the state gives"):
+        derive_equations(Model("kane_acceleration", parameters=[mass], sympy_model=kane,
+                               measurements={"a": u.diff()}))

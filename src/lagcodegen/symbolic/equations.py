@@ -260,8 +260,12 @@ def make_substitution(coordinates, speeds, q, u, what: str, parameters=None, inp
             higher = sorted(str(a) for a in left if isinstance(a, sp.Derivative)
                             and a.expr in set(coordinates) | set(speeds) | set(q) | set(u))
             if higher:
+                # found by review: a measurement was told of "a constraint on the accelerations"
+                why = (" (a constraint on the accelerations is not supported)" if "constraint" in where else
+                       " (measure what the state gives; an acceleration is an output of the dynamics)"
+                       if "measurement" in where else "")
                 raise ModelError(f"{where} contains the acceleration {higher[0]}: only coordinates, speeds and "
-                                 "time may appear here (a constraint on the accelerations is not supported)")
+                                 f"time may appear here{why}")
             exposed = sorted(str(a) for a in left if a in set(reactions))
             if exposed:
                 raise ModelError(f"{where} contains {exposed[0]}, a force the auxiliary speeds expose, in the "
