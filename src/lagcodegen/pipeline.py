@@ -16,17 +16,18 @@ import functools
 import hashlib
 import io
 import json
-import marshal
 import math
 import numbers
 import os
 import pickle
 import tempfile
+import types
 import warnings
 from collections.abc import Mapping
 from dataclasses import replace
 from pathlib import Path
 
+import numpy as np
 import sympy as sp
 from sympy.core.function import AppliedUndef, UndefinedFunction
 
@@ -311,7 +312,7 @@ class _DigestPickler(pickle.Pickler):
 
     def reducer_override(self, obj):
         if (isinstance(obj, type) and issubclass(obj, sp.Basic) and not isinstance(obj, UndefinedFunction)
-                and not (obj.__module__ or "").startswith("sympy")):
+                and not _from_sympy(obj)):
             name = f"{obj.__module__}.{obj.__qualname__}"
             self.classes[id(obj)] = (name, obj)  # two classes of one name (two exec'd cells) both count
             return str, (name,)  # by its name here, its code apart: a class defined in a function pickles too
@@ -330,22 +331,82 @@ def _values_digest(values) -> str:
 
 
 def _class_code(cls: type) -> bytes:
-    """The methods (code, defaults and the plain values of the globals they read) and the other
-    attributes of ``cls`` and of its bases outside sympy."""
-    parts = []
+    """What decides the behaviour of ``cls`` and of its bases outside sympy: its methods (their code,
+    defaults, closures and the globals they read) and its other attributes, by content (no memory
+    addresses, file names or line numbers: the key must be the same in every process)."""
+    parts, seen = [], {id(cls)}
     for klass in cls.__mro__:
-        if klass is object or (klass.__module__ or "").startswith("sympy"):
+        if klass is object or _from_sympy(klass):
             continue
         for name, value in sorted(vars(klass).items()):
-            function = getattr(value, "__func__", value)
-            code = getattr(function, "__code__", None)
-            if code is not None:
-                read = {n: function.__globals__[n] for n in code.co_names if n in function.__globals__}
-                plain = sorted((n, repr(v)) for n, v in read.items() if isinstance(v, (numbers.Number, str, bytes)))
-                parts.append(f"{name}:{function.__defaults__!r}:{plain!r}".encode() + marshal.dumps(code))
-            elif not (name.startswith("__") and name.endswith("__")):
-                parts.append(f"{name}={value!r}".encode())
+            if name.startswith("__") and name.endswith("__") and not callable(value):
+                continue  # __module__, __doc__, __dict__, ...
+            parts.append(name.encode() + b"=" + _value_bytes(value, seen, 0))
     return b"\0".join(parts)
+
+
+def _from_sympy(obj) -> bool:
+    module = getattr(obj, "__module__", None) or ""
+    return module == "sympy" or module.startswith("sympy.")
+
+
+def _value_bytes(value, seen: set, depth: int) -> bytes:
+    """Deterministic bytes of ``value`` as a method sees it (found by review: a closure variable, a
+    list or a helper function read through the globals keyed as before when edited)."""
+    if depth > 8 or id(value) in seen and not isinstance(value, (numbers.Number, str, bytes)):
+        return b"..."
+    if value is None or isinstance(value, (bool, numbers.Number, str, bytes)):
+        return repr(value).encode()
+    if isinstance(value, sp.Basic):
+        return sp.srepr(value).encode()
+    seen = seen | {id(value)}
+    if isinstance(value, (list, tuple)):
+        return b"[" + b",".join(_value_bytes(v, seen, depth + 1) for v in value) + b"]"
+    if isinstance(value, (set, frozenset)):
+        return b"{" + b",".join(sorted(_value_bytes(v, seen, depth + 1) for v in value)) + b"}"
+    if isinstance(value, dict):
+        return b"{" + b",".join(sorted(_value_bytes(k, seen, depth + 1) + b":" + _value_bytes(v, seen, depth + 1)
+                                       for k, v in value.items())) + b"}"
+    if isinstance(value, (staticmethod, classmethod)):
+        return _value_bytes(value.__func__, seen, depth + 1)
+    if isinstance(value, property):
+        return b"property" + b",".join(_value_bytes(f, seen, depth + 1) for f in (value.fget, value.fset, value.fdel))
+    if isinstance(value, type):
+        if _from_sympy(value) or value.__module__ == "builtins":
+            return f"{value.__module__}.{value.__qualname__}".encode()
+        return f"{value.__module__}.{value.__qualname__}".encode() + b":" + _class_code(value)
+    if isinstance(value, types.ModuleType):
+        return b"module " + value.__name__.encode()
+    code = getattr(getattr(value, "__func__", value), "__code__", None)
+    if code is not None:
+        function = getattr(value, "__func__", value)
+        if _from_sympy(function):
+            return f"{function.__module__}.{function.__qualname__}".encode()
+        read = {n: function.__globals__[n] for n in _names(code) if n in function.__globals__}
+        closure = [cell.cell_contents for cell in function.__closure__ or ()]
+        return b"function:" + _code_bytes(code) + b"|" + _value_bytes(
+            (function.__defaults__, function.__kwdefaults__, closure, sorted(read.items())), seen, depth + 1)
+    if isinstance(value, np.ndarray):
+        return f"array{value.dtype}{value.shape}".encode() + value.tobytes()
+    try:
+        return pickle.dumps(value, protocol=4)
+    except Exception:  # noqa: BLE001 - an object that does not pickle keys by its type alone
+        return f"{type(value).__module__}.{type(value).__qualname__}".encode()
+
+
+def _names(code) -> set:
+    """The global names ``code`` and the code objects nested in it read."""
+    names = set(code.co_names)
+    for const in code.co_consts:
+        if isinstance(const, types.CodeType):
+            names |= _names(const)
+    return names
+
+
+def _code_bytes(code) -> bytes:
+    """The instructions, names and constants of ``code`` (nested code too), not its file or lines."""
+    consts = b",".join(_code_bytes(c) if isinstance(c, types.CodeType) else repr(c).encode() for c in code.co_consts)
+    return code.co_code + b"|" + repr((code.co_names, code.co_varnames)).encode() + b"|" + consts
 
 
 @functools.lru_cache(maxsize=1)

@@ -623,3 +623,69 @@ def test_a_compiler_that_writes_nothing_is_named(cache_root):
     with pytest.raises(BuildError, match=r"the C compiler \S*true reported success for model .* but wrote no "
                                          r".*; set CC to a working C compiler"):
         build_module(tiny_sources("writes-nothing"), compiler=shutil.which("true"))
+
+
+@pytest.mark.parametrize("how", ["closure", "global list", "helper function"])
+def test_what_a_user_function_class_reads_is_keyed(tmp_path, how):
+    """Found by review (session 16, of the fix above): a stiffness held in a closure, a global list or
+    a helper function the method calls keyed as before when changed: cos(2) for k = 9, status OK.
+    Reference: x = cos(sqrt(k) t) from x = 1 at rest (exact)."""
+    import math
+
+    import sympy as sp
+    import sympy.physics.mechanics as me
+
+    from lagcodegen import Model
+    from lagcodegen.pipeline import compile_model
+    from lagcodegen.run.simulate import simulate
+
+    x = me.dynamicsymbols("x")
+    m = sp.symbols("m", positive=True)
+    for stiffness in (4.0, 9.0):
+        if how == "closure":
+            def make(k):
+                class Spring(sp.Function):
+                    def fdiff(self, argindex=1):
+                        return k * self.args[0]
+                return Spring
+            spring = make(stiffness)
+        else:
+            namespace = {"sp": sp, "__name__": "user_cell"}
+            source = ("COEFFS = [%r]\nclass spring(sp.Function):\n    def fdiff(self, argindex=1):\n"
+                      "        return COEFFS[0] * self.args[0]\n" if how == "global list" else
+                      "def stiffness():\n    return %r\nclass spring(sp.Function):\n"
+                      "    def fdiff(self, argindex=1):\n        return stiffness() * self.args[0]\n") % stiffness
+            exec(source, namespace)
+            spring = namespace["spring"]
+        model = Model("read_spring", [x], [m], kinetic_energy=m * x.diff() ** 2 / 2, potential_energy=spring(x),
+                      parameter_values={"m": 1.0})
+        run = simulate(compile_model(model, methods=("rk4",), outputs="rhs", cache_dir=tmp_path), {"x": 1.0}, 1.0, 1e-3)
+        assert run.ok and run["x"][-1] == pytest.approx(math.cos(math.sqrt(stiffness)), abs=1e-9)
+
+
+def test_a_model_with_a_user_function_class_keys_alike_in_two_processes(tmp_path):
+    """Found by review (session 16): sympy's metaclass gives every subclass a dict of functions whose
+    repr holds memory addresses, so each process keyed the same model apart (no hit, another entry).
+    A module named sympy_<something> is the user's, not sympy's."""
+    module = tmp_path / "sympy_helpers.py"
+    module.write_text("import sympy as sp\nclass spring(sp.Function):\n    def fdiff(self, argindex=1):\n"
+                      "        return 4.0 * self.args[0]\n")
+    script = textwrap.dedent(f"""
+        import sys
+        sys.path.insert(0, {str(tmp_path)!r})
+        import sympy as sp, sympy.physics.mechanics as me
+        from sympy_helpers import spring
+        from lagcodegen import Model
+        from lagcodegen.pipeline import _model_entry
+        x = me.dynamicsymbols("x")
+        m = sp.symbols("m", positive=True)
+        model = Model("keyed_spring", [x], [m], kinetic_energy=m * x.diff()**2 / 2, potential_energy=spring(x),
+                      parameter_values={{"m": 1.0}})
+        print(_model_entry(model, None, None, ("rk4",), "double", ("libm", 0, "fast"), {str(tmp_path)!r}).name)
+    """)
+    keys = [subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=300) for _ in range(2)]
+    assert all(k.returncode == 0 for k in keys), [k.stderr for k in keys]
+    assert keys[0].stdout == keys[1].stdout and keys[0].stdout.startswith("model-")
+    module.write_text(module.read_text().replace("4.0", "9.0"))
+    edited = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=300)
+    assert edited.returncode == 0 and edited.stdout != keys[0].stdout
