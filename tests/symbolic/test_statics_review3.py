@@ -212,3 +212,18 @@ def test_a_linearization_undefined_at_the_point_is_named():
     with pytest.raises(ValueError, match=r"r0 entry for F holds z, which is no parameter"):
         linearize_state(eom, [1, 0], [sp.Symbol("z")], values={})
     assert linearize_state(eom, [2.0, 0.0], [0.0], values={}).C[0, 0] == pytest.approx(-0.25)  # -1/x^2 at x = 2
+
+
+def test_no_steady_motion_where_the_force_never_vanishes_far_from_zero():
+    """Found by review of the product sizes above: sizing (x - x0)^2 as (|x| + |x0|)^2 = 4e6 accepted
+    x = x0 = 1000 as a steady state of F = -k (x - x0)^2 - tau, residual 1e-4. By hand F <= -tau < 0
+    everywhere: there is none."""
+    from lagcodegen.statics.steady import steady_motion
+
+    x = me.dynamicsymbols("x")
+    k, x0, tau = sp.symbols("k x0 tau", positive=True)
+    well = derive_equations(Model("cubic_well", [x], [m, k, x0, tau], kinetic_energy=m * x.diff() ** 2 / 2,
+                                  potential_energy=k * (x - x0) ** 3 / 3, generalized_forces={x: -tau},
+                                  parameter_values={"m": 1.0, "k": 1.0, "x0": 1000.0, "tau": 1e-4}))
+    with pytest.raises(ValueError, match=r"steady motion of model 'cubic_well': no solution"):
+        steady_motion(well, {"x": 1000.0}, unknowns=["x"], steady=["x_d"])

@@ -111,12 +111,13 @@ def constraint_residuals(eom: EquationsOfMotion, q: Any, u: Any, values: Mapping
 
 
 def term_sizes(rows) -> sp.Matrix:
-    """Per row, the size a residual of the row is measured against (its rounding level is a small
-    multiple of eps times this): the sum of |terms| of a sum, the product of the factors' sizes of a
-    product, the base's size to a positive integer power, else |expr|. A product's |value| alone is
-    0 at its roots, which only an exact 0 then passed (found by review: a bead's steady angle on a
+    """Per row, the size a residual of the row is measured against: its rounding level is a small
+    multiple of eps times this, propagated to first order through the expression: the sum of |terms|
+    of a sum; for a product, each factor's size times the |others| (and |value| itself); for a
+    positive integer power p of b, p |b|^(p-1) size(b); else |expr|. A product's |value| alone is 0
+    at its roots, which only an exact 0 then passed (found by review: a bead's steady angle on a
     spinning hoop, F = sin(theta) (cos(theta) - g / (R W^2)) m R^2 W^2, was refused at residuals of
-    7e-15)."""
+    7e-15); and size(b)^p, tried first, let (x - 1000)^2 + 1e-4 pass for 0 (found by review)."""
     return sp.Matrix([_size(sp.sympify(row)) for row in rows])
 
 
@@ -124,9 +125,15 @@ def _size(expr: sp.Expr) -> sp.Expr:
     if expr.is_Add:
         return sp.Add(*[_size(term) for term in expr.args])
     if expr.is_Mul:
-        return sp.Mul(*[_size(factor) for factor in expr.args])
+        factors = expr.args
+        value = sp.Abs(expr)
+        composite = [i for i, f in enumerate(factors) if not f.is_Atom]
+        if not composite:
+            return value
+        others = [sp.Mul(*[sp.Abs(g) for j, g in enumerate(factors) if j != i]) for i in composite]
+        return value + sp.Add(*[_size(factors[i]) * rest for i, rest in zip(composite, others)])
     if expr.is_Pow and expr.exp.is_Integer and expr.exp > 0:
-        return _size(expr.base) ** expr.exp
+        return expr.exp * sp.Abs(expr.base) ** (expr.exp - 1) * _size(expr.base)
     return sp.Abs(expr)
 
 
