@@ -114,7 +114,7 @@ def term_sizes(rows) -> sp.Matrix:
     """Per row, the size a residual of the row is measured against: its rounding level is a small
     multiple of eps times this, propagated to first order through the expression: the sum of |terms|
     of a sum; for a product, each factor's size times the |others| (and |value| itself); for a
-    positive integer power p of b, p |b|^(p-1) size(b); else |expr|. A product's |value| alone is 0
+    positive integer power p of a sum b, p |b|^(p-1) size(b) (and |value|); else |expr|. A product's |value| alone is 0
     at its roots, which only an exact 0 then passed (found by review: a bead's steady angle on a
     spinning hoop, F = sin(theta) (cos(theta) - g / (R W^2)) m R^2 W^2, was refused at residuals of
     7e-15); and size(b)^p, tried first, let (x - 1000)^2 + 1e-4 pass for 0 (found by review)."""
@@ -126,15 +126,17 @@ def _size(expr: sp.Expr) -> sp.Expr:
         return sp.Add(*[_size(term) for term in expr.args])
     if expr.is_Mul:
         factors = expr.args
+        sizes = [_size(f) for f in factors]
+        # the factors whose own rounding is more than their |value| (sums, powers of sums)
+        inexact = [i for i, (f, size) in enumerate(zip(factors, sizes)) if size != sp.Abs(f)]
         value = sp.Abs(expr)
-        composite = [i for i, f in enumerate(factors) if not f.is_Atom]
-        if not composite:
+        if not inexact:
             return value
-        others = [sp.Mul(*[sp.Abs(g) for j, g in enumerate(factors) if j != i]) for i in composite]
-        return value + sp.Add(*[_size(factors[i]) * rest for i, rest in zip(composite, others)])
-    if expr.is_Pow and expr.exp.is_Integer and expr.exp > 0:
-        return expr.exp * sp.Abs(expr.base) ** (expr.exp - 1) * _size(expr.base)
-    return sp.Abs(expr)
+        return value + sp.Add(*[sizes[i] * sp.Mul(*[sp.Abs(g) for j, g in enumerate(factors) if j != i])
+                                for i in inexact])
+    if expr.is_Pow and expr.exp.is_Integer and expr.exp > 0 and not expr.base.is_Atom:
+        return sp.Abs(expr) + expr.exp * sp.Abs(expr.base) ** (expr.exp - 1) * _size(expr.base)
+    return sp.Abs(expr)  # an atom, or a power of one (its rounding is that of the products: |value|)
 
 
 def checked_tolerance(tol, what: str) -> float:
