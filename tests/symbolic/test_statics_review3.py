@@ -227,3 +227,22 @@ def test_no_steady_motion_where_the_force_never_vanishes_far_from_zero():
                                   parameter_values={"m": 1.0, "k": 1.0, "x0": 1000.0, "tau": 1e-4}))
     with pytest.raises(ValueError, match=r"steady motion of model 'cubic_well': no solution"):
         steady_motion(well, {"x": 1000.0}, unknowns=["x"], steady=["x_d"])
+
+
+def test_three_close_simple_equilibria_far_from_zero_are_kept_apart():
+    """Found by review of the degenerate-root merging above: V = k ((x - c)^2 - a^2)^2 / (4 a^2) with
+    c = 100, a = 0.005 came back as one 'degenerate' equilibrium. By hand F = -k (x - c)((x - c)^2 - a^2)
+    / a^2 has the three simple roots c - a, c, c + a (F' = -2k, k, -2k): no warning."""
+    import warnings
+
+    from lagcodegen.statics.equilibria import find_equilibria
+
+    x = me.dynamicsymbols("x")
+    k, c, a = sp.symbols("k c a", positive=True)
+    well = derive_equations(Model("double_well", [x], [m, k, c, a], kinetic_energy=m * x.diff() ** 2 / 2,
+                                  potential_energy=k * ((x - c) ** 2 - a ** 2) ** 2 / (4 * a ** 2),
+                                  parameter_values={"m": 1.0, "k": 1.0, "c": 100.0, "a": 0.005}))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        roots = find_equilibria(well, {}, guesses=np.linspace(90.0, 110.0, 201).reshape(-1, 1))
+    np.testing.assert_allclose(sorted(r[well.q[0]] for r in roots), [99.995, 100.0, 100.005], rtol=0, atol=1e-9)

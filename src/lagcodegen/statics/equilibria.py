@@ -220,12 +220,10 @@ def _solve_numeric(eom: EquationsOfMotion, G: sp.Matrix, vals: dict, guesses: An
         # size of the terms of each equation at the starts, |F_i| and |dF_i/dq| |q|: a start that is
         # already a root has |F| at round-off level, which alone would make the tolerance unreachable.
         # Per equation: one scale for all let a small force (m2 = 0.01 beside m1 = 100) pass anywhere
-        sizes, slopes = np.zeros(n), np.zeros(n)
+        sizes = np.zeros(n)
         for x0 in starts:
-            J0 = np.abs(jac(x0))
-            row = np.maximum(np.abs(fun(x0)), J0 @ np.abs(x0))
+            row = np.maximum(np.abs(fun(x0)), np.abs(jac(x0)) @ np.abs(x0))
             sizes = np.maximum(sizes, np.where(np.isfinite(row), row, 0.0))
-            slopes = np.maximum(slopes, np.where(np.isfinite(J0), J0, 0.0).max(axis=1, initial=0.0))
         tol = 1e-9 * np.maximum(sizes, 1e-12 * max(float(sizes.max(initial=0.0)), 1e-300))
         roots = []
         for x0 in starts:
@@ -234,13 +232,7 @@ def _solve_numeric(eom: EquationsOfMotion, G: sp.Matrix, vals: dict, guesses: An
             if np.all(np.isfinite(x)) and np.all(np.isfinite(residual)) and np.all(np.abs(residual) <= tol):
                 roots.append(_canonical(x, angles))
         found = _unique(roots, angles)
-        # singular relative to each equation's slopes over the starts, not to the Jacobian at the root
-        # itself: at a double root (a saddle-node) that is as small as the root's error, and the roots
-        # from different starts, each within tol, came back as a cluster of distinct ones (found by
-        # review: 7 'equilibria' over 4e-8 rad for one at pi/2); those are merged into one
-        scaled = [jac(x) / np.maximum(slopes, 1e-300)[:, None] for x in found]
-        singular = [x for x, J in zip(found, scaled) if not np.all(np.isfinite(J))
-                    or np.linalg.svd(J, compute_uv=False).min() < DEGENERATE_SLOPE]
+        singular = [x for x in found if _degenerate(jac, x, starts, angles)]
         if len(singular) > 1:
             merged = _unique(singular, angles, tol=DEGENERATE_SPREAD)
             found = [x for x in found if not any(x is y for y in singular)
@@ -253,6 +245,32 @@ def _solve_numeric(eom: EquationsOfMotion, G: sp.Matrix, vals: dict, guesses: An
                       "points fell) or degenerate; hold the free coordinates, or read them as one family",
                       EquilibriumWarning, stacklevel=3)
     return [dict(zip(q, map(float, x))) for x in found]
+
+
+def _degenerate(jac, x: np.ndarray, starts: np.ndarray, angles: tuple) -> bool:
+    """A singular Jacobian at the root x: of rank below n relative to its own largest entry (a
+    continuum, a free coordinate), or with a singular value below DEGENERATE_SLOPE of each equation's
+    slopes at the three starts nearest x (a double root, a saddle-node: there the Jacobian is as small
+    as the root's error, and the roots from different starts came back as a cluster of distinct
+    ones; found by review: 7 'equilibria' over 4e-8 rad for one at pi/2). Near starts, not all of
+    them: slopes far away (1e7 at 10 from a quartic well's centre) made every root there look
+    degenerate (found by review of the first form of this test)."""
+    with np.errstate(all="ignore"):
+        J = jac(x)
+        if not np.all(np.isfinite(J)) or not np.abs(J).max() > 0:
+            return True
+        if np.linalg.matrix_rank(J, tol=1e-9 * np.abs(J).max()) < len(x):
+            return True
+        gap = np.abs(starts - x)
+        gap = np.where(angles, np.abs(np.mod(starts - x + np.pi, 2 * np.pi) - np.pi), gap)
+        near = starts[np.argsort(np.linalg.norm(gap, axis=1))[:3]]
+        slopes = np.zeros(len(x))
+        for x0 in near:
+            J0 = np.abs(jac(x0))
+            slopes = np.maximum(slopes, np.where(np.isfinite(J0), J0, 0.0).max(axis=1, initial=0.0))
+        if not np.all(slopes > 0):
+            return False
+        return bool(np.linalg.svd(J / slopes[:, None], compute_uv=False).min() < DEGENERATE_SLOPE)
 
 
 class EquilibriumWarning(UserWarning):
