@@ -330,18 +330,19 @@ def _values_digest(values) -> str:
     return digest.hexdigest()
 
 
-def _class_code(cls: type) -> bytes:
+def _class_code(cls: type, seen: frozenset = frozenset(), depth: int = 0) -> bytes:
     """What decides the behaviour of ``cls`` and of its bases outside sympy: its methods (their code,
     defaults, closures and the globals they read) and its other attributes, by content (no memory
-    addresses, file names or line numbers: the key must be the same in every process)."""
-    parts, seen = [], {id(cls)}
+    addresses, file names or line numbers: the key must be the same in every process). ``seen``:
+    the objects being described around it (two classes whose methods read each other)."""
+    parts, seen = [], seen | {id(cls)}
     for klass in cls.__mro__:
         if klass is object or _from_sympy(klass):
             continue
         for name, value in sorted(vars(klass).items()):
             if name.startswith("__") and name.endswith("__") and not callable(value):
                 continue  # __module__, __doc__, __dict__, ...
-            parts.append(name.encode() + b"=" + _value_bytes(value, seen, 0))
+            parts.append(name.encode() + b"=" + _value_bytes(value, seen, depth + 1))
     return b"\0".join(parts)
 
 
@@ -350,7 +351,7 @@ def _from_sympy(obj) -> bool:
     return module == "sympy" or module.startswith("sympy.")
 
 
-def _value_bytes(value, seen: set, depth: int) -> bytes:
+def _value_bytes(value, seen: frozenset, depth: int) -> bytes:
     """Deterministic bytes of ``value`` as a method sees it (found by review: a closure variable, a
     list or a helper function read through the globals keyed as before when edited)."""
     if depth > 8 or id(value) in seen and not isinstance(value, (numbers.Number, str, bytes)):
@@ -374,7 +375,7 @@ def _value_bytes(value, seen: set, depth: int) -> bytes:
     if isinstance(value, type):
         if _from_sympy(value) or value.__module__ == "builtins":
             return f"{value.__module__}.{value.__qualname__}".encode()
-        return f"{value.__module__}.{value.__qualname__}".encode() + b":" + _class_code(value)
+        return f"{value.__module__}.{value.__qualname__}".encode() + b":" + _class_code(value, seen, depth + 1)
     if isinstance(value, types.ModuleType):
         return b"module " + value.__name__.encode()
     code = getattr(getattr(value, "__func__", value), "__code__", None)

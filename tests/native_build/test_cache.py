@@ -689,3 +689,26 @@ def test_a_model_with_a_user_function_class_keys_alike_in_two_processes(tmp_path
     module.write_text(module.read_text().replace("4.0", "9.0"))
     edited = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=300)
     assert edited.returncode == 0 and edited.stdout != keys[0].stdout
+
+
+def test_two_user_function_classes_that_read_each_other_are_keyed(tmp_path):
+    """Found reading the change over: a method of A reading the class B, whose method reads A, recursed
+    without end in the key (each class described afresh). By hand V' = 4 x: x = cos(2 t) from x = 1."""
+    import math
+
+    import sympy as sp
+    import sympy.physics.mechanics as me
+
+    from lagcodegen import Model
+    from lagcodegen.pipeline import compile_model
+    from lagcodegen.run.simulate import simulate
+
+    namespace = {"sp": sp, "__name__": "user_cell"}
+    exec("class A(sp.Function):\n    def fdiff(self, argindex=1):\n        return 0 * B(self.args[0]) + 4.0 * self.args[0]\n"
+         "class B(sp.Function):\n    def fdiff(self, argindex=1):\n        return A(self.args[0])\n", namespace)
+    x = me.dynamicsymbols("x")
+    m = sp.symbols("m", positive=True)
+    model = Model("mutual_spring", [x], [m], kinetic_energy=m * x.diff() ** 2 / 2, potential_energy=namespace["A"](x),
+                  parameter_values={"m": 1.0})
+    run = simulate(compile_model(model, methods=("rk4",), outputs="rhs", cache_dir=tmp_path), {"x": 1.0}, 1.0, 1e-3)
+    assert run.ok and run["x"][-1] == pytest.approx(math.cos(2.0), abs=1e-9)
