@@ -234,6 +234,20 @@ def _table_by_name(layout, inputs: Mapping, t0: float, t_end: float) -> InputTab
     return InputTable(times=knots, values=values)
 
 
+def check_float_range(layout, values: np.ndarray, members: bool = False) -> None:
+    """An InputError naming the first input value (..., n_r) beyond the range of a float kernel, and
+    its member with ``members`` (the leading axis): the lane kernel called it a diverged state, the
+    scalar one a non-finite input, and simulate stopped at step 1 naming none (found by reviews)."""
+    if layout.precision != "float":
+        return
+    beyond = np.argwhere(np.abs(values) > np.finfo(np.float32).max)
+    if beyond.size:
+        index = tuple(beyond[0])
+        where = f"member {index[0]}: " if members else ""
+        raise InputError(f"{where}input {layout.inputs[index[-1]]!r} = {float(values[index])!r} is beyond the "
+                         "range of the float kernel")
+
+
 class CallableInputs:
     """A Python callable f(t, x) -> r behind the C drivers' input function (a cffi callback).
 

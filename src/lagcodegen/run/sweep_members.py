@@ -295,15 +295,8 @@ def member_input_tables(system: CompiledSystem, columns, values, inputs, member_
 
 
 def _within_precision(layout, values: np.ndarray) -> np.ndarray:
-    """``values`` (n_members, k, n_r), or an InputError naming the first member and input beyond the
-    float range of a float kernel (found by review: the lane kernel then called it a diverged state,
-    the scalar one a non-finite input; a swept parameter that size was refused up front)."""
-    from .inputs import InputError
+    """``values`` (n_members, k, n_r), checked against a float kernel's range (`inputs.check_float_range`)."""
+    from .inputs import check_float_range
 
-    if layout.precision == "float":
-        beyond = np.argwhere(np.abs(values) > np.finfo(np.float32).max)
-        if beyond.size:
-            member, knot, column = beyond[0]
-            raise InputError(f"member {member}: input {layout.inputs[column]!r} = "
-                             f"{float(values[member, knot, column])!r} is beyond the range of the float kernel")
+    check_float_range(layout, values, members=True)
     return values
