@@ -21,6 +21,7 @@ from lagcodegen import Link, Model, ModelError, catalog
 from lagcodegen.codegen.outputs import KernelError
 from lagcodegen.pipeline import compile_model
 from lagcodegen.run.simulate import jacobian, make_rhs, parameter_vector, simulate
+from lagcodegen.status import Status
 from lagcodegen.symbolic.derive import derive_equations
 from lagcodegen.symbolic.trees import choose_formulation, derive_from_tree
 from lagcodegen.tree import TreeError
@@ -440,6 +441,36 @@ def test_a_mass_on_its_joint_axis_given_as_floats_is_refused_like_an_exact_one()
              Link("b", "a", "revolute", (0.6, 0.8, 0), q1, offset=(0, 0, -1), mass=2.0, center=(0.3, 0.4, 0))]
     with pytest.raises(ModelError, match=r"link 'b' \(joint variable q1\) has no inertia"):
         derive_equations(Model("on_axis", [q0, q1], [], tree=links, gravity=(0, 0, -9.81), formulation="recursive"))
+
+
+def test_a_mass_on_its_joint_axis_through_runtime_parameters_is_a_singular_status(tmp_path):
+    """The same link b with its point mass at (cx, cy, 0), cx and cy runtime parameters. At (0.3, 0.4),
+    (0.9, 1.2), (0.03, 0.04) the mass is on b's axis (0.6, 0.8, 0), by hand, and q1 has no inertia:
+    its articulated pivot came out at rounding level and the run went on with status OK (q1's final
+    value changing with h). Now the pivot is tested against the trace of the inertia block it reads,
+    and the run stops singular. Off the axis, (0.3, 0.41), the recursive kernel agrees with the
+    closed form (a second derivation route) to 1e-9 at the initial state."""
+    q0, q1 = me.dynamicsymbols("q0:2")
+    cx, cy = sp.symbols("cx cy")
+
+    def model(formulation):
+        links = [Link("a", None, "revolute", (1, 0, 0), q0, mass=1.0, center=(0, 0, -1),
+                      inertia=(0.1, 0.1, 0.1, 0, 0, 0)),
+                 Link("b", "a", "revolute", (0.6, 0.8, 0), q1, offset=(0, 0, -1), mass=2.0, center=(cx, cy, 0))]
+        return Model("on_axis_runtime", [q0, q1], [cx, cy], tree=links, gravity=(0, 0, -9.81),
+                     formulation=formulation, parameter_values={cx: 0.3, cy: 0.4})
+
+    recursive = _compiled(model("recursive"), tmp_path)
+    for on_axis in ((0.3, 0.4), (0.9, 1.2), (0.03, 0.04)):
+        with pytest.warns(RuntimeWarning, match="singular"):
+            run = simulate(recursive, {"q0": 0.2, "q1": 0.1}, t_end=0.01, h=1e-3,
+                           params={"cx": on_axis[0], "cy": on_axis[1]})
+        assert run.status is Status.SINGULAR_MASS_MATRIX, on_axis
+    closed = _compiled(model("closed"), tmp_path)
+    x = np.array([0.2, 0.1, 0.3, -0.4])
+    off_axis = {"cx": 0.3, "cy": 0.41}
+    np.testing.assert_allclose(make_rhs(recursive, off_axis)(0.0, x), make_rhs(closed, off_axis)(0.0, x),
+                               rtol=1e-9, atol=1e-9)
 
 
 def test_the_command_line_records_a_recursive_trees_energy(tmp_path, capsys):

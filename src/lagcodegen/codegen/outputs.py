@@ -18,6 +18,7 @@ import numpy as np
 import sympy as sp
 
 from ..symbolic.equations import EquationsOfMotion
+from ..symbolic.trees import PIVOT_ROUNDING
 from .csyntax import PROJECTION_STALL, UNIT_ROUNDOFF, comment_text, literal, record
 from .kernel_text import KernelWriter, kernel_parts, results
 from .ldlt import ldlt_factor_lines, ldlt_substitution_lines
@@ -903,10 +904,16 @@ def _recursive_dynamics_functions(w: KernelWriter, kernel) -> list:
     D_i = S_i^T I^A_i S_i are those of M's LDL^T in joint variables: each must be positive."""
     real, prefix, n = w.real, w.prefix, w.n_u
     parts, body = kernel_parts(w, kernel, "dynamics", driven=True)
-    pivots = results(kernel, "D")
-    body.append("/* Pivots of the articulated inertias: positive unless the tree is singular here */")
+    pivots, scales = results(kernel, "D"), results(kernel, "DS")
+    floor = literal(PIVOT_ROUNDING if real == "double" else 1e-6, real)
+    body.append("/* Pivots of the articulated inertias: above rounding of the trace of the inertia block each")
+    body.append(" * reads unless the tree is singular here (a mass on a joint's axis from runtime parameters) */")
     body += [f"const {real} pivot_{j} = {w.expr(e, f'D[{j}]')};" for (j, _), e in pivots.items()]
-    body.append(f"if (!({' && '.join(f'pivot_{j} > 0' for j in range(n))})) return {prefix}_pivot_failure(x);")
+    tests = []
+    for j in range(n):
+        scale = scales.get((j, 0), 0)
+        tests.append(f"pivot_{j} > 0" if scale == 0 else f"pivot_{j} > {floor} * ({w.expr(scale, f'trace[{j}]')})")
+    body.append(f"if (!({' && '.join(tests)})) return {prefix}_pivot_failure(x);")
     body.append("if (gauge) {  /* pivots, for the drivers' singularity monitor */")
     body += [f"    gauge[{j}] = pivot_{j};" for j in range(n)]
     body.append("}")

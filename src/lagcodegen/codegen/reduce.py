@@ -230,7 +230,8 @@ def _tree_kernel(eom: EquationsOfMotion, name: str, folding: dict) -> ReducedKer
     tree = eom.tree
     if name == "dynamics":
         labelled = [(("UD", j, 0), e) for j, e in enumerate(tree.accelerations)] + \
-            [(("D", j, 0), e) for j, e in enumerate(tree.pivots)]
+            [(("D", j, 0), e) for j, e in enumerate(tree.pivots)] + \
+            [(("DS", j, 0), e) for j, e in enumerate(tree.pivot_scales)]
     elif name == "energy":
         labelled = [(("E", 0, 0), tree.energy)]
     elif name == "points":

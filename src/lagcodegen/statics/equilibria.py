@@ -729,6 +729,7 @@ def hold_inputs(eom: EquationsOfMotion, inputs: Any) -> EquationsOfMotion:
         tree = dataclasses.replace(tree, assignments=tuple((s, held(e)) for s, e in tree.assignments),
                                    accelerations=tuple(map(held, tree.accelerations)),
                                    pivots=tuple(map(held, tree.pivots)), energy=held(tree.energy),
+                                   pivot_scales=tuple(map(held, tree.pivot_scales)),
                                    points=tuple((n, tuple(map(held, xyz))) for n, xyz in tree.points))
     return dataclasses.replace(eom, **fields, points=tuple((n, held(e)) for n, e in eom.points),
                                measurements=tuple((n, held(e)) for n, e in eom.measurements), tree=tree, inputs=())

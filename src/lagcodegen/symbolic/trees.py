@@ -70,6 +70,10 @@ class TreeKernels:
     pivots : tuple of Expr, (n,)
         The articulated-body pivots D_i = S_i^T I^A_i S_i (the LDL^T pivots of M in joint
         variables): zero when the tree is singular at the state (a massless end of the tree).
+    pivot_scales : tuple of Expr, (n,)
+        The trace of the block of I^A_i that D_i reads (angular for a revolute joint, linear for a
+        prismatic one): D_i <= it, so a D_i below `PIVOT_ROUNDING` of it is rounding of a zero (a
+        mass on the joint's axis given through runtime parameters), not a pivot.
     energy : Expr
         T + V.
     points : tuple of (name, (x, y, z))
@@ -84,6 +88,7 @@ class TreeKernels:
     energy: object
     points: tuple
     angles: tuple = ()
+    pivot_scales: tuple = ()
 
 
 @dataclass(frozen=True)
@@ -388,7 +393,7 @@ def derive_recursive(model: Model, choice: FormulationChoice | None = None) -> E
         IA.append(I)
 
     # pass 2: articulated inertias and bias forces, from the leaves to the ground
-    U, D, u_, D_inverse = [None] * n, [None] * n, [None] * n, [None] * n
+    U, D, u_, D_inverse, D_scale = [None] * n, [None] * n, [None] * n, [None] * n, [None] * n
     for i in reversed(range(n)):
         Ii = rec.symmetric(IA[i], f"IA{i}")
         pi = rec.vector(pA[i], f"pA{i}", forces)
@@ -402,6 +407,8 @@ def derive_recursive(model: Model, choice: FormulationChoice | None = None) -> E
                              "inertia: the articulated inertia about its joint's axis is zero (it and the links it "
                              "carries have no mass, or their mass lies on that axis and no inertia about it), so its "
                              "joint's acceleration is not determined; give it a mass or an inertia about its axis")
+        blocks = [k for k in range(6) if any(S[b] != 0 for b in range(3 * (k // 3), 3 * (k // 3) + 3))]
+        D_scale[i] = rec.bind(sp.Add(*(Ii[k][k] for k in blocks)), f"Dscale_{i}")
         u_[i] = rec.bind(tau[i] - _dot(S, pi), f"u_{i}")
         Dinv = rec.bind(1 / D[i], f"Dinv_{i}")
         D_inverse[i] = Dinv
@@ -433,6 +440,7 @@ def derive_recursive(model: Model, choice: FormulationChoice | None = None) -> E
     energy, points = _energy_and_points(model, links, parent, joints, v, gravity, V, rec, to_plain)
     angles = tuple(all(links[i].joint == "revolute" for i in range(n) if P[i, j] != 0) for j in range(n))
     kernels = TreeKernels(assignments=tuple(rec.assignments), accelerations=accelerations, pivots=tuple(D),
+                          pivot_scales=tuple(D_scale),
                           energy=energy, points=points, angles=angles)
     eom = assemble(model, coords, speeds, q, u, None, None, sp.ImmutableMatrix(u), None, None, to_plain,
                    inputs_checked=True, positions={})
