@@ -342,3 +342,21 @@ def test_a_step_in_the_potential_is_named_before_the_printer():
     with raises_naming("generalized force along x_d", "DiracDelta(x - 1)", "step"):
         derive_equations(oscillator(potential_energy=k * x * sp.Heaviside(x - 1)))
     assert derive_equations(oscillator(potential_energy=k * sp.Abs(x))).forcing[0] != 0
+
+
+def test_a_jump_in_a_piecewise_energy_is_named():
+    """Found by review: V = Piecewise((k x^2/2, x < 1), (k x^2/2 + 3, True)) jumps by 3 at x = 1 (by
+    hand); its derivative is -k x on both sides, so the motion crossed the step as if it were not
+    there, with status OK. Now the derivation names the jump, the coordinate and where. Pieces that
+    meet (a one-sided spring, continuous at x = 1) stay accepted, as does a Piecewise whose
+    condition reads no coordinate. A floor of a coordinate (its derivative unevaluated) is named."""
+    with raises_naming("potential energy jumps by 3", "x = 1", "x < 1"):
+        derive_equations(oscillator(potential_energy=sp.Piecewise((k * x ** 2 / 2, x < 1),
+                                                                  (k * x ** 2 / 2 + 3, True))))
+    with raises_naming("kinetic energy jumps by", "x = -0.5"):
+        derive_equations(oscillator(kinetic_energy=sp.Piecewise((T_x, 2 * x + 1 > 0), (2 * T_x, True))))
+    meeting = sp.Piecewise((k * (x - 1) ** 2 / 2, x > 1), (0, True))
+    assert derive_equations(oscillator(potential_energy=meeting)).forcing[0] != 0
+    assert derive_equations(oscillator(potential_energy=sp.Piecewise((V_x, k > 1), (2 * V_x, True)))).forcing[0] != 0
+    with raises_naming("generalized force along x_d", "Derivative(floor(x), x)"):
+        derive_equations(oscillator(potential_energy=V_x + sp.floor(x)))

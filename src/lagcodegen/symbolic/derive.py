@@ -69,8 +69,67 @@ def derive_equations(model: Model) -> EquationsOfMotion:
                              "derivative of a step in the potential or kinetic energy, the dissipation or a force "
                              "(Heaviside, sign or Abs of a coordinate); its impulse cannot be integrated: write it "
                              "without the step")
+        derivatives = sorted(map(str, sp.sympify(force).atoms(sp.Derivative)))
+        if derivatives:  # floor, ceiling, Mod of a coordinate: sympy leaves their derivative unevaluated
+            raise ModelError(f"model {model.name!r}: the generalized force along {eom.u[i]} holds {derivatives[0]}, "
+                             "which sympy cannot evaluate (floor, ceiling or Mod of a coordinate in an energy, "
+                             "the dissipation or a force): write it without that function")
+    for what, energy in (("potential", eom.potential_energy), ("kinetic", eom.kinetic_energy)):
+        jump = energy_jump(energy, eom.q, eom.t, eom.parameter_values)
+        if jump is not None:
+            coordinate, where, size, condition = jump
+            raise ModelError(f"model {model.name!r}: the {what} energy jumps by {size:.3g} where {coordinate} = "
+                             f"{where} (its Piecewise condition {condition}): the jump's force is an impulse that "
+                             "the derivative drops, so the motion would cross it as if it were not there; make "
+                             "the pieces meet at the boundary")
     speeds = {s.name for s in eom.u}
     for name, _ in eom.measurements:  # a trajectory's columns are looked up by name
         if name in speeds:
             raise ModelError(f"measurement {name!r} has the name of a speed of model {model.name!r}; rename it")
     return eom
+
+
+def energy_jump(energy, coordinates, t, values) -> tuple | None:
+    """(coordinate, boundary value, jump, condition) of the first boundary of a Piecewise in ``energy``
+    across which it jumps, or None. Each relational of the conditions that is linear in a coordinate
+    gives a boundary; the energy is evaluated (30 digits) at 1e-7 either side of it and at twice that,
+    the other symbols at the model's values (1 where it has none: a boundary crossing holds for any),
+    and a step that the slopes either side do not account for is a jump."""
+    if not isinstance(energy, sp.Basic) or not energy.has(sp.Piecewise):
+        return None
+    coordinates = [c for c in coordinates if isinstance(c, sp.Symbol)]
+    point = {t: sp.Float("0.37")}
+    for symbol in energy.free_symbols:
+        if symbol not in coordinates and symbol != t:
+            value = values.get(symbol, values.get(getattr(symbol, "name", None), 1))
+            try:
+                point[symbol] = sp.Float(float(value), 30)
+            except (TypeError, ValueError):  # a symbolic value: any point of the boundary tells
+                point[symbol] = sp.Float(1)
+    rest = {c: sp.Float(0.1 + 0.07 * k, 30) for k, c in enumerate(coordinates)}
+    for piecewise in sorted(energy.atoms(sp.Piecewise), key=sp.default_sort_key):
+        for condition in (c for _, c in piecewise.args):
+            if not isinstance(condition, sp.Basic):
+                continue
+            for relation in sorted(condition.atoms(sp.core.relational.Relational), key=sp.default_sort_key):
+                g = relation.lhs - relation.rhs
+                for c in coordinates:
+                    if c not in g.free_symbols or not sp.diff(g, c, 2).equals(0):
+                        continue
+                    slope = sp.diff(g, c)
+                    at = {**point, **{o: v for o, v in rest.items() if o != c}}
+                    slope_value = slope.xreplace(at).evalf(30)
+                    if not slope_value.is_Number or slope_value == 0:
+                        continue
+                    boundary = (c - g / slope).xreplace(at).evalf(30)
+                    if not (boundary.is_Number and boundary.is_finite and boundary.is_real):
+                        continue
+                    step = sp.Float("1e-7", 30) * (1 + abs(boundary))
+                    sample = [energy.xreplace({**at, c: boundary + k * step}).evalf(30) for k in (-2, -1, 1, 2)]
+                    if not all(v.is_Number and v.is_finite for v in sample):
+                        continue
+                    left2, left, right, right2 = sample
+                    size = abs(right - left)
+                    if size > 10 * (abs(right2 - right) + abs(left - left2)) + sp.Float("1e-12") * (1 + abs(left)):
+                        return c, float(boundary), float(right - left), relation
+    return None
