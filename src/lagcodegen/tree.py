@@ -89,8 +89,15 @@ class Link:
             raise TreeError(f"link {self.name!r}: the axis is the zero vector")
         # exact only when every component is (found by review: (3, 0.001, 0) has a float norm, and
         # nsimplify of 3/norm = 0.99999994 gave 1, an axis 5.6e-8 off unit length)
-        exact = all(a.is_Rational for a in axis)
-        set_("axis", tuple(sp.nsimplify(a / norm) if exact else sp.Float(a / norm) for a in axis))
+        # an exact irrational axis (sqrt(2)/2, cos(pi/6)) stays exact (found by review: Float() of
+        # sqrt(2)/2 raised a bare TypeError, and a tree's recursive form normalizes its axes again)
+        if all(a.is_Rational for a in axis):
+            unit = tuple(sp.nsimplify(a / norm) for a in axis)
+        elif not any(a.has(sp.Float) for a in axis):
+            unit = tuple(sp.simplify(a / norm) for a in axis)
+        else:
+            unit = tuple(sp.Float(sp.N(a / norm, 15)) for a in axis)
+        set_("axis", unit)
         set_("offset", self._vector("offset", self.offset))
         set_("center", self._vector("center", self.center))
         set_("variable", self._expr("variable", self.variable))

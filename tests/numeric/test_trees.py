@@ -512,3 +512,53 @@ def test_the_command_line_animates_a_tree(tmp_path, capsys):
     assert "wrote" in capsys.readouterr().out
     with Image.open(out) as gif:
         assert gif.n_frames == 11  # 0.4 s at 25 frames per second, both ends
+
+
+def test_two_joints_about_one_tilted_axis_stop_singular(tmp_path):
+    """Found by review: joints a (massless) and b about the same axis (1, 1, 0) through the same
+    point: b's pose is Rot(a, q1 + q2) (by hand), so M = [[J, J], [J, J]] is singular at every state.
+    About z the derivation refuses it; about the tilted axis a's pivot is an expression in q2 that
+    is zero only in exact arithmetic, and the run went on with status OK and an arbitrary split of
+    ud1 + ud2. Now the pivot's relative floor stops it at once."""
+    q1, q2 = me.dynamicsymbols("q1 q2")
+    m, g = sp.symbols("m g", positive=True)
+    for mass in (m, 1.0):
+        links = [Link("a", None, "revolute", (1.0, 1.0, 0), q1),
+                 Link("b", "a", "revolute", (1.0, 1.0, 0), q2, mass=mass, center=(0.3, -0.2, 0.5),
+                      inertia=(0.1, 0.2, 0.3, 0.01, 0.02, 0.03))]
+        system = _compiled(Model("aligned", [q1, q2], [m, g], tree=links, gravity=(0, -g, 0),
+                                 formulation="recursive", parameter_values={m: 1.0, g: 9.81}), tmp_path)
+        with pytest.warns(RuntimeWarning, match="singular"):
+            run = simulate(system, np.array([0.3, 0.2, 0.1, -0.4]), t_end=0.5, h=1e-3)
+        assert run.status is Status.SINGULAR_MASS_MATRIX and len(run.t) == 1, mass
+
+
+def test_an_exact_irrational_axis_stays_exact_in_both_formulations(tmp_path):
+    """Found by review: Link(axis=(sqrt(2)/2, sqrt(2)/2, 0)) and (cos(pi/6), sin(pi/6), 0) raised a
+    bare TypeError ("cannot create mpf from sqrt(2)/2"), and (1, 1, 0) did in the recursive form,
+    which normalizes the stored axis again. Expected: the unit vectors by hand; the recursive
+    right-hand side equal to the closed form's (a second derivation route)."""
+    q1, q2 = me.dynamicsymbols("q1 q2")
+    half = sp.sqrt(2) / 2
+    assert Link("a", None, "revolute", (1, 1, 0), q1).axis == (half, half, 0)
+    assert Link("a", None, "revolute", (half, half, 0), q1).axis == (half, half, 0)
+    assert Link("a", None, "revolute", (sp.cos(sp.pi / 6), sp.sin(sp.pi / 6), 0), q1).axis == \
+        (sp.sqrt(3) / 2, sp.Rational(1, 2), 0)
+    links = [Link("a", None, "revolute", (0, 0, 1), q1, mass=1, center=(0, -1, 0)),
+             Link("b", "a", "revolute", (1, 1, 0), q2, offset=(0, -1, 0), mass=2, center=(0.2, -1, 0.3),
+                  inertia=(0.1, 0.2, 0.3, 0, 0, 0))]
+    rhs = {form: make_rhs(_compiled(Model("irrational_axis", [q1, q2], [], tree=links, gravity=(0, -9.81, 0),
+                                          formulation=form), tmp_path))
+           for form in ("closed", "recursive")}
+    x = np.array([0.3, -0.5, 0.7, 0.2])
+    np.testing.assert_allclose(rhs["recursive"](0.0, x), rhs["closed"](0.0, x), rtol=1e-12, atol=1e-12)
+
+
+def test_a_tree_without_mass_is_named_in_the_closed_form():
+    """Found by review: the closed form's message blamed Model(bodies=[...]) and the energies route,
+    which the user never used; the recursive form named the link."""
+    q1, q2 = me.dynamicsymbols("q1 q2")
+    links = [Link("a", None, "revolute", (0, 0, 1), q1, center=(0, -1, 0)),
+             Link("b", "a", "revolute", (0, 0, 1), q2, offset=(0, -1, 0), center=(0, -1, 0))]
+    with pytest.raises(ModelError, match="no link of its tree has a mass or an inertia"):
+        derive_equations(Model("massless", [q1, q2], [], tree=links, gravity=(0, -9.81, 0), formulation="closed"))

@@ -181,6 +181,9 @@ def bodies_model(model: Model) -> Model:
             bodies.append(me.Particle(link.name, center, link.mass))
         for name, xyz in link.points.items():
             points[name] = origin.locatenew(name, _vector(xyz, frame))
+    if not bodies:  # found by review: the bodies route's own message blamed Model(bodies=...) and energies
+        raise ModelError(f"model {model.name!r}: no link of its tree has a mass or an inertia, so it has no kinetic "
+                         "energy and no joint's acceleration is determined; give its links masses")
     gravity = _vector(three_entries(model.gravity), N) if model.gravity is not None else None
     return Model(model.name, model.coordinates, model.parameters, potential_energy=model.potential_energy,
                  generalized_forces=model.generalized_forces, dissipation=model.dissipation, bodies=bodies,
