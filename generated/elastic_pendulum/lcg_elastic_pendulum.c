@@ -357,6 +357,17 @@ static int lcg_elastic_pendulum_finite(const double *x)
     }
     return 1;
 }
+
+/* 1 if every parameter is finite (found by review: a NaN one can pass every later test, fmax(0, NaN)
+ * being 0, and a run went on with LCG_OK and a wrong motion) */
+static int lcg_elastic_pendulum_finite_parameters(const double *p)
+{
+    int i;
+    for (i = 0; i < 4; ++i) {
+        if (!isfinite(p[i])) return 0;
+    }
+    return 1;
+}
 #if LCG_BUILD_PART != 2
 
 /* classical Runge-Kutta (order 4): one step of x at t, its 4 stage(s) unrolled from the
@@ -501,7 +512,7 @@ static int lcg_elastic_pendulum_irk_step(int s, const double *a, const double *b
         for (i = 0; i < S; ++i) {
             double scaled = fabs(r[i]) / (1.0 + fabs(x[i % 4]));
             W[i] += r[i];
-            if (scaled > size) size = scaled;
+            if (scaled > size || isnan(scaled)) size = scaled;  /* NaN kept: the test below sees it */
         }
         if (!isfinite(size)) return LCG_NEWTON_FAILED;
         if (size <= 1e-13) break;
@@ -563,7 +574,7 @@ static int lcg_elastic_pendulum_symplectic_euler_step(double t, double *x, const
         lcg_elastic_pendulum_spd_solve(factor, b, 2);
         for (i = 0; i < 2; ++i) {
             const double change = fabs(b[i] - v[i]) / (1.0 + fabs(v[i]));
-            if (change > size) size = change;
+            if (change > size || isnan(change)) size = change;  /* NaN kept: the test below sees it */
             v[i] = b[i];
         }
         /* from the state itself (the first pass), forces that overflowed: the run diverged, no Newton
@@ -592,12 +603,13 @@ static int lcg_elastic_pendulum_symplectic_euler_step(double t, double *x, const
 #if LCG_BUILD_PART != 2
 /* classical Runge-Kutta (order 4): advance (t, x) by one step h; work holds 22 values. A step
  * that fails, LCG_NONFINITE_STATE for a new state that is not finite included, leaves t and x as they were;
- * LCG_BAD_ARGUMENT for a time t or step h that is not finite (h may be negative: a step backwards). */
+ * LCG_BAD_ARGUMENT for a time t, step h or parameter that is not finite (h may be negative: a step backwards). */
 int lcg_elastic_pendulum_step_rk4(double *t, double *x, const double *p, double h, double *work)
 {
     double before[4];
     int i, status;
     if (!isfinite(*t) || !isfinite(h)) return LCG_BAD_ARGUMENT;
+    if (!lcg_elastic_pendulum_finite_parameters(p)) return LCG_BAD_ARGUMENT;
     for (i = 0; i < 4; ++i) before[i] = x[i];
     status = lcg_elastic_pendulum_rk4_step(*t, x, p, h, work, work + 20);
     if (status == LCG_OK && !lcg_elastic_pendulum_finite(x)) status = LCG_NONFINITE_STATE;
@@ -613,12 +625,13 @@ int lcg_elastic_pendulum_step_rk4(double *t, double *x, const double *p, double 
 #if LCG_BUILD_PART != 1
 /* symplectic (semi-implicit) Euler, momentum form (order 1): advance (t, x) by one step h; work holds 28 values. A step
  * that fails, LCG_NONFINITE_STATE for a new state that is not finite included, leaves t and x as they were;
- * LCG_BAD_ARGUMENT for a time t or step h that is not finite (h may be negative: a step backwards). */
+ * LCG_BAD_ARGUMENT for a time t, step h or parameter that is not finite (h may be negative: a step backwards). */
 int lcg_elastic_pendulum_step_symplectic_euler(double *t, double *x, const double *p, double h, double *work)
 {
     double before[4];
     int i, status;
     if (!isfinite(*t) || !isfinite(h)) return LCG_BAD_ARGUMENT;
+    if (!lcg_elastic_pendulum_finite_parameters(p)) return LCG_BAD_ARGUMENT;
     for (i = 0; i < 4; ++i) before[i] = x[i];
     status = lcg_elastic_pendulum_symplectic_euler_step(*t, x, p, h, work, work + 26);
     if (status == LCG_OK && !lcg_elastic_pendulum_finite(x)) status = LCG_NONFINITE_STATE;
@@ -634,12 +647,13 @@ int lcg_elastic_pendulum_step_symplectic_euler(double *t, double *x, const doubl
 #if LCG_BUILD_PART != 1
 /* implicit midpoint, Gauss s=1 (order 2): advance (t, x) by one step h; work holds 50 values. A step
  * that fails, LCG_NONFINITE_STATE for a new state that is not finite included, leaves t and x as they were;
- * LCG_BAD_ARGUMENT for a time t or step h that is not finite (h may be negative: a step backwards). */
+ * LCG_BAD_ARGUMENT for a time t, step h or parameter that is not finite (h may be negative: a step backwards). */
 int lcg_elastic_pendulum_step_implicit_midpoint(double *t, double *x, const double *p, double h, double *work)
 {
     double before[4];
     int i, status;
     if (!isfinite(*t) || !isfinite(h)) return LCG_BAD_ARGUMENT;
+    if (!lcg_elastic_pendulum_finite_parameters(p)) return LCG_BAD_ARGUMENT;
     for (i = 0; i < 4; ++i) before[i] = x[i];
     status = lcg_elastic_pendulum_irk_step(1, lcg_elastic_pendulum_implicit_midpoint_a, lcg_elastic_pendulum_implicit_midpoint_b, lcg_elastic_pendulum_implicit_midpoint_c, *t, x, p, h, work, work + 48);
     if (status == LCG_OK && !lcg_elastic_pendulum_finite(x)) status = LCG_NONFINITE_STATE;
@@ -762,6 +776,7 @@ int lcg_elastic_pendulum_step_monitored(int method, double t, double *x, const d
     double *scratch = history + 2 * 2;
     double copy[4];
     int i, status;
+    if (!lcg_elastic_pendulum_finite_parameters(p)) return LCG_BAD_ARGUMENT;
     for (i = 0; i < 4; ++i) copy[i] = x[i];
     if (judge_only) return lcg_elastic_pendulum_step_any(method, t, copy, p, h, scratch, 0, history, 0, 1);
     status = lcg_elastic_pendulum_step_any(method, t, copy, p, h, scratch, 0, history, first, 0);
@@ -804,7 +819,8 @@ static int lcg_elastic_pendulum_driver_arguments(int method, double t0, double h
  * (LCG_ELASTIC_PENDULUM_METHOD_*), keeping every stride-th state: n_steps / stride + 1 samples in
  * t_out, x_out (4 per sample), energy_out (1 per sample, or NULL) and points_out
  * (3 per sample, or NULL); energy and points are written only when the kernel has them.
- * Stops at the first failing step; *steps_done is the number of completed steps.
+ * Stops at the first failing step; *steps_done is the number of completed steps. LCG_BAD_ARGUMENT,
+ * writing nothing, also for a parameter that is not finite.
  * work holds LCG_ELASTIC_PENDULUM_WORK_SIZE values. */
 int lcg_elastic_pendulum_simulate(int method, double t0, const double *x0, const double *p, double h, long n_steps, long stride, int project, double *t_out, double *x_out, double *energy_out, double *points_out, double *residuals_out, double *multipliers_out, double *work, long *steps_done)
 {
@@ -815,6 +831,7 @@ int lcg_elastic_pendulum_simulate(int method, double t0, const double *x0, const
     int i, status = LCG_OK;
     *steps_done = 0;
     status = lcg_elastic_pendulum_driver_arguments(method, t0, h, n_steps, stride);
+    if (status == LCG_OK && !lcg_elastic_pendulum_finite_parameters(p)) status = LCG_BAD_ARGUMENT;
     if (status != LCG_OK) return status;  /* before anything is written: the outputs are sized by n_steps / stride */
     for (i = 0; i < 4; ++i) x[i] = x0[i];
     if (!lcg_elastic_pendulum_finite(x)) return LCG_NONFINITE_STATE;
@@ -871,6 +888,7 @@ void lcg_elastic_pendulum_sweep(int method, long n_members, const double *x0s, c
         for (i = 0; i < 4; ++i) x[i] = last[i] = x0s[member * 4 + i];
         for (i = 0; i < 2; ++i) peak[i] = fabs(x[i]);
         if (!lcg_elastic_pendulum_finite(x)) code = LCG_NONFINITE_STATE;
+        if (!lcg_elastic_pendulum_finite_parameters(p)) code = LCG_BAD_ARGUMENT;
         if (track_energy && code == LCG_OK) energy0 = lcg_elastic_pendulum_energy(t0, x, p);
         if (out) {
             for (i = 0; i < 4; ++i) out[i] = x[i];

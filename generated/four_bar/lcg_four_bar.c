@@ -493,7 +493,7 @@ int lcg_four_bar_project(double t, double *x, const double *p)
         double size = 0.0, moved = 0.0, magnitude = 0.0;
         lcg_four_bar_constraint_terms(t, x, p, phi, A, phi_t);
         for (i = 0; i < 2; ++i) {
-            if (fabs(phi[i]) > size) size = fabs(phi[i]);
+            if (fabs(phi[i]) > size || isnan(phi[i])) size = fabs(phi[i]);  /* NaN kept */
         }
         if (!isfinite(size)) return LCG_NONFINITE_STATE;
         if (size <= 1e-12 || stalled) break;
@@ -540,6 +540,17 @@ static int lcg_four_bar_finite(const double *x)
     }
     return 1;
 }
+
+/* 1 if every parameter is finite (found by review: a NaN one can pass every later test, fmax(0, NaN)
+ * being 0, and a run went on with LCG_OK and a wrong motion) */
+static int lcg_four_bar_finite_parameters(const double *p)
+{
+    int i;
+    for (i = 0; i < 11; ++i) {
+        if (!isfinite(p[i])) return 0;
+    }
+    return 1;
+}
 #if LCG_BUILD_PART != 2
 
 /* classical Runge-Kutta (order 4): one step of x at t, its 4 stage(s) unrolled from the
@@ -577,12 +588,13 @@ static int lcg_four_bar_rk4_step(double t, double *x, const double *parameters, 
 #if LCG_BUILD_PART != 2
 /* classical Runge-Kutta (order 4): advance (t, x) by one step h; work holds 41 values. A step
  * that fails, LCG_NONFINITE_STATE for a new state that is not finite included, leaves t and x as they were;
- * LCG_BAD_ARGUMENT for a time t or step h that is not finite (h may be negative: a step backwards). */
+ * LCG_BAD_ARGUMENT for a time t, step h or parameter that is not finite (h may be negative: a step backwards). */
 int lcg_four_bar_step_rk4(double *t, double *x, const double *p, double h, double *work)
 {
     double before[6];
     int i, status;
     if (!isfinite(*t) || !isfinite(h)) return LCG_BAD_ARGUMENT;
+    if (!lcg_four_bar_finite_parameters(p)) return LCG_BAD_ARGUMENT;
     for (i = 0; i < 6; ++i) before[i] = x[i];
     status = lcg_four_bar_rk4_step(*t, x, p, h, work, work + 30);
     if (status == LCG_OK && !lcg_four_bar_finite(x)) status = LCG_NONFINITE_STATE;
@@ -740,6 +752,7 @@ int lcg_four_bar_step_monitored(int method, double t, double *x, const double *p
     double *scratch = history + 2 * 11;
     double copy[6];
     int i, status;
+    if (!lcg_four_bar_finite_parameters(p)) return LCG_BAD_ARGUMENT;
     for (i = 0; i < 6; ++i) copy[i] = x[i];
     if (judge_only) return lcg_four_bar_step_any(method, t, copy, p, h, scratch, 0, history, 0, 1);
     status = lcg_four_bar_step_any(method, t, copy, p, h, scratch, 0, history, first, 0);
@@ -789,7 +802,8 @@ static int lcg_four_bar_driver_arguments(int method, double t0, double h, long n
  * (LCG_FOUR_BAR_METHOD_*), keeping every stride-th state: n_steps / stride + 1 samples in
  * t_out, x_out (6 per sample), energy_out (1 per sample, or NULL) and points_out
  * (9 per sample, or NULL); energy and points are written only when the kernel has them.
- * Stops at the first failing step; *steps_done is the number of completed steps.
+ * Stops at the first failing step; *steps_done is the number of completed steps. LCG_BAD_ARGUMENT,
+ * writing nothing, also for a parameter that is not finite.
  * work holds LCG_FOUR_BAR_WORK_SIZE values. */
 int lcg_four_bar_simulate(int method, double t0, const double *x0, const double *p, double h, long n_steps, long stride, int project, double *t_out, double *x_out, double *energy_out, double *points_out, double *residuals_out, double *multipliers_out, double *work, long *steps_done)
 {
@@ -800,6 +814,7 @@ int lcg_four_bar_simulate(int method, double t0, const double *x0, const double 
     int i, status = LCG_OK;
     *steps_done = 0;
     status = lcg_four_bar_driver_arguments(method, t0, h, n_steps, stride);
+    if (status == LCG_OK && !lcg_four_bar_finite_parameters(p)) status = LCG_BAD_ARGUMENT;
     if (status != LCG_OK) return status;  /* before anything is written: the outputs are sized by n_steps / stride */
     for (i = 0; i < 6; ++i) x[i] = x0[i];
     if (!lcg_four_bar_finite(x)) return LCG_NONFINITE_STATE;
@@ -856,6 +871,7 @@ void lcg_four_bar_sweep(int method, long n_members, const double *x0s, const dou
         for (i = 0; i < 6; ++i) x[i] = last[i] = x0s[member * 6 + i];
         for (i = 0; i < 3; ++i) peak[i] = fabs(x[i]);
         if (!lcg_four_bar_finite(x)) code = LCG_NONFINITE_STATE;
+        if (!lcg_four_bar_finite_parameters(p)) code = LCG_BAD_ARGUMENT;
         if (track_energy && code == LCG_OK) energy0 = lcg_four_bar_energy(t0, x, p);
         if (out) {
             for (i = 0; i < 6; ++i) out[i] = x[i];

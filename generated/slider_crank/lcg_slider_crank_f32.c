@@ -521,7 +521,7 @@ int lcg_slider_crank_f32_project(float t, float *x, const float *p)
         float size = 0.0F, moved = 0.0F, magnitude = 0.0F;
         lcg_slider_crank_f32_constraint_terms(t, x, p, phi, A, phi_t);
         for (i = 0; i < 4; ++i) {
-            if (fabsf(phi[i]) > size) size = fabsf(phi[i]);
+            if (fabsf(phi[i]) > size || isnan(phi[i])) size = fabsf(phi[i]);  /* NaN kept */
         }
         if (!isfinite(size)) return LCG_NONFINITE_STATE;
         if (size <= 1e-06F || stalled) break;
@@ -568,6 +568,17 @@ static int lcg_slider_crank_f32_finite(const float *x)
     }
     return 1;
 }
+
+/* 1 if every parameter is finite (found by review: a NaN one can pass every later test, fmax(0, NaN)
+ * being 0, and a run went on with LCG_OK and a wrong motion) */
+static int lcg_slider_crank_f32_finite_parameters(const float *p)
+{
+    int i;
+    for (i = 0; i < 9; ++i) {
+        if (!isfinite(p[i])) return 0;
+    }
+    return 1;
+}
 #if LCG_BUILD_PART != 2
 
 /* classical Runge-Kutta (order 4): one step of x at t, its 4 stage(s) unrolled from the
@@ -605,12 +616,13 @@ static int lcg_slider_crank_f32_rk4_step(float t, float *x, const float *paramet
 #if LCG_BUILD_PART != 2
 /* classical Runge-Kutta (order 4): advance (t, x) by one step h; work holds 79 values. A step
  * that fails, LCG_NONFINITE_STATE for a new state that is not finite included, leaves t and x as they were;
- * LCG_BAD_ARGUMENT for a time t or step h that is not finite (h may be negative: a step backwards). */
+ * LCG_BAD_ARGUMENT for a time t, step h or parameter that is not finite (h may be negative: a step backwards). */
 int lcg_slider_crank_f32_step_rk4(float *t, float *x, const float *p, float h, float *work)
 {
     float before[10];
     int i, status;
     if (!isfinite(*t) || !isfinite(h)) return LCG_BAD_ARGUMENT;
+    if (!lcg_slider_crank_f32_finite_parameters(p)) return LCG_BAD_ARGUMENT;
     for (i = 0; i < 10; ++i) before[i] = x[i];
     status = lcg_slider_crank_f32_rk4_step(*t, x, p, h, work, work + 50);
     if (status == LCG_OK && !lcg_slider_crank_f32_finite(x)) status = LCG_NONFINITE_STATE;
@@ -768,6 +780,7 @@ int lcg_slider_crank_f32_step_monitored(int method, float t, float *x, const flo
     float *scratch = history + 2 * 29;
     float copy[10];
     int i, status;
+    if (!lcg_slider_crank_f32_finite_parameters(p)) return LCG_BAD_ARGUMENT;
     for (i = 0; i < 10; ++i) copy[i] = x[i];
     if (judge_only) return lcg_slider_crank_f32_step_any(method, t, copy, p, h, scratch, 0, history, 0, 1);
     status = lcg_slider_crank_f32_step_any(method, t, copy, p, h, scratch, 0, history, first, 0);
@@ -817,7 +830,8 @@ static int lcg_slider_crank_f32_driver_arguments(int method, float t0, float h, 
  * (LCG_SLIDER_CRANK_F32_METHOD_*), keeping every stride-th state: n_steps / stride + 1 samples in
  * t_out, x_out (10 per sample), energy_out (1 per sample, or NULL) and points_out
  * (9 per sample, or NULL); energy and points are written only when the kernel has them.
- * Stops at the first failing step; *steps_done is the number of completed steps.
+ * Stops at the first failing step; *steps_done is the number of completed steps. LCG_BAD_ARGUMENT,
+ * writing nothing, also for a parameter that is not finite.
  * work holds LCG_SLIDER_CRANK_F32_WORK_SIZE values. */
 int lcg_slider_crank_f32_simulate(int method, float t0, const float *x0, const float *p, float h, long n_steps, long stride, int project, float *t_out, float *x_out, float *energy_out, float *points_out, float *residuals_out, float *multipliers_out, float *work, long *steps_done)
 {
@@ -828,6 +842,7 @@ int lcg_slider_crank_f32_simulate(int method, float t0, const float *x0, const f
     int i, status = LCG_OK;
     *steps_done = 0;
     status = lcg_slider_crank_f32_driver_arguments(method, t0, h, n_steps, stride);
+    if (status == LCG_OK && !lcg_slider_crank_f32_finite_parameters(p)) status = LCG_BAD_ARGUMENT;
     if (status != LCG_OK) return status;  /* before anything is written: the outputs are sized by n_steps / stride */
     for (i = 0; i < 10; ++i) x[i] = x0[i];
     if (!lcg_slider_crank_f32_finite(x)) return LCG_NONFINITE_STATE;
@@ -884,6 +899,7 @@ void lcg_slider_crank_f32_sweep(int method, long n_members, const float *x0s, co
         for (i = 0; i < 10; ++i) x[i] = last[i] = x0s[member * 10 + i];
         for (i = 0; i < 5; ++i) peak[i] = fabsf(x[i]);
         if (!lcg_slider_crank_f32_finite(x)) code = LCG_NONFINITE_STATE;
+        if (!lcg_slider_crank_f32_finite_parameters(p)) code = LCG_BAD_ARGUMENT;
         if (track_energy && code == LCG_OK) energy0 = lcg_slider_crank_f32_energy(t0, x, p);
         if (out) {
             for (i = 0; i < 10; ++i) out[i] = x[i];

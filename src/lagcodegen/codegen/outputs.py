@@ -532,7 +532,7 @@ def _configuration_project_c(w: KernelWriter, kernel) -> dict:
             f"    {real} size = {literal(0, real)}, moved = {literal(0, real)}, magnitude = {literal(0, real)};",
             f"    {prefix}_configuration_terms(t, x, p, H, HJ);",
             f"    for (i = 0; i < {k}; ++i) {{",
-            f"        if ({fabs}(H[i]) > size) size = {fabs}(H[i]);",
+            f"        if ({fabs}(H[i]) > size || isnan(H[i])) size = {fabs}(H[i]);  /* NaN kept */",
             "    }",
             "    if (!isfinite(size)) return LCG_NONFINITE_STATE;",
             f"    if (size <= {tolerance} || stalled) return LCG_OK;",
