@@ -313,6 +313,31 @@ def test_a_float_kernel_refuses_times_it_cannot_resolve(tmp_path, driven_oscilla
         assert any(issubclass(w.category, FloatTimeWarning) for w in caught) == warned
 
 
+def test_a_double_kernel_refuses_times_it_cannot_resolve(tmp_path, driven_oscillator):
+    """Found by review: the same in double, farther out. At t0 = 2^40 double's spacing is 2^-12
+    (2.4e-4), above h/4 for h = 2^-14, and 767 of 1024 rows per step were read at the wrong rows,
+    status OK. At t0 = 2^30 the spacing, 2^-22, is far below h/4, and every row is read as given
+    (the reference: the rows themselves); an undriven model far out is warned, not refused."""
+    from lagcodegen.run.arguments import FloatTimeWarning
+
+    system = compile_model(driven_oscillator("driven_oscillator_late"), methods=("rk4",), cache_dir=tmp_path)
+    h, n = 2.0 ** -14, 1024
+    rows = np.arange(n + 1, dtype=float)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", FloatTimeWarning)
+        run = simulate(system, {"x": 0.0}, t0=2.0 ** 30, t_end=2.0 ** 30 + n * h, h=h, inputs=rows,
+                       check_stability=False)
+    np.testing.assert_array_equal(run["F"], rows)
+    with pytest.raises(ValueError, match=r"a double kernel .* spacing near t = .* more than h/4 .* the inputs F "
+                                         r"would be read at the wrong steps"):
+        simulate(system, {"x": 0.0}, t0=2.0 ** 40, t_end=2.0 ** 40 + n * h, h=h, inputs=rows)
+    x = me.dynamicsymbols("x")
+    free = compile_model(Model("free_oscillator_far", [x], [], kinetic_energy=x.diff()**2 / 2,
+                               potential_energy=2 * x**2), methods=("rk4",), cache_dir=tmp_path)
+    with pytest.warns(FloatTimeWarning, match="a double kernel"):
+        simulate(free, {"x": 1.0}, t0=2.0 ** 40, t_end=2.0 ** 40 + n * h, h=h, check_stability=False)
+
+
 def zero_order_hold_exact(r, h: float) -> np.ndarray:
     """The oscillator from rest under r_k held over step k, exactly: the zero-order-hold map
     x+ = e^(A h) x + A^-1 (e^(A h) - I) B r_k; shape (len(r) + 1, 2)."""

@@ -108,24 +108,25 @@ def step_count(t0: float, t_end: float, h: float) -> int:
 
 
 class FloatTimeWarning(UserWarning):
-    """A float kernel's run reaches times where float cannot resolve its step."""
+    """A run reaches times where the kernel's precision (float, or double far from 0) cannot resolve its step."""
 
 
 def check_time_resolution(layout, t0: float, t_end: float, h: float) -> None:
-    """A float kernel holds t in float: past about 2^22 steps from 0 its spacing exceeds h/4, and
-    t0 + k h no longer tells the steps apart (found by review: with t/h near 2^23 an array of inputs
-    per step was read a row off, status OK). A driven model is refused (its inputs are looked up by
+    """The kernel holds t in its precision: past about 2^22 steps from 0 (float) or 2^51 (double)
+    its spacing exceeds h/4, and t0 + k h no longer tells the steps apart (found by review: with
+    t/h near 2^23 in float, and with t0 = 2^40, h = 2^-14 in double, an array of inputs per step was
+    read at the wrong rows, status OK). A driven model is refused (its inputs are looked up by
     time); any other run gets a FloatTimeWarning (the recorded times, and the time an explicitly
     time-dependent model sees, are that coarse)."""
-    if layout.precision != "float":
-        return
     largest = max(abs(t0), abs(t_end))
-    spacing = float(np.spacing(np.float32(largest)))
+    single = layout.precision == "float"
+    spacing = float(np.spacing(np.float32(largest) if single else np.float64(largest)))
     if not spacing > abs(h) / 4:
         return
-    text = (f"a float kernel holds the time in float, whose spacing near t = {largest:g} is {spacing:.3g}, "
-            f"more than h/4 = {abs(h) / 4:.3g}")
-    remedy = "use a double kernel (precision='double'), a larger h, or times nearer 0"
+    text = (f"a {'float' if single else 'double'} kernel holds the time in {'float' if single else 'double'}, "
+            f"whose spacing near t = {largest:g} is {spacing:.3g}, more than h/4 = {abs(h) / 4:.3g}")
+    remedy = ("use a double kernel (precision='double'), a larger h, or times nearer 0" if single else
+              "use a larger h, or times nearer 0 (count them from the run's start)")
     if layout.inputs:
         raise ValueError(f"{text}: the inputs {', '.join(layout.inputs)} would be read at the wrong steps; {remedy}")
     warnings.warn(f"{text}: the recorded times, and the time the model sees, are that coarse; {remedy}",
