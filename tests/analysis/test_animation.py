@@ -535,3 +535,11 @@ def test_a_speed_that_asks_for_too_many_frames_is_refused(pendulum_run):
                                              r"than 18000: raise the speed"):
         compose_scene(run, fps=25, speed=1e-5)
     assert compose_scene(run, fps=25, speed=span * 25 / 17_000).n_frames > 16_000  # just under the bound
+
+
+def test_chosen_points_are_chained_in_the_models_order():
+    """Found by review: points=["bob2", "bob1"] drew the rods origin-bob2 and bob2-bob1, a rod from the
+    hinge straight to the lower bob; the docs promise the chain in the order the model declares the
+    points (origin-bob1, bob1-bob2: the double pendulum's rods)."""
+    names, links, _ = scenes.scene_names(("bob1", "bob2"), points=["bob2", "bob1"])
+    assert [(names[a], names[b]) for a, b in links] == [(scenes.ORIGIN, "bob1"), ("bob1", "bob2")]

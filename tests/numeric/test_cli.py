@@ -14,6 +14,7 @@ build into the session's private cache). Independent sources for the numbers:
 """
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import re
 import subprocess
@@ -28,7 +29,7 @@ from lagcodegen.cli.arguments import EXIT_FAILED, EXIT_USAGE, parse_axis
 from lagcodegen.cli.commands import main
 from lagcodegen.pipeline import compile_model
 from lagcodegen.run.simulate import Status, solve_reference
-from lagcodegen.run.sweep import SweepResult
+from lagcodegen.run.sweep import CHUNK_FAILED, NOT_RUN, SweepResult
 
 pytestmark = pytest.mark.compiler
 
@@ -322,6 +323,26 @@ def test_heatmap_greys_and_counts_failed_members():
     np.testing.assert_array_equal(values.compressed(), [0.0, 2.0, 3.0, 5.0])
     assert fig.axes[1].get_ylabel() == "max |q| over the run"  # the colorbar
     assert any("failed (status != ok): 2" in text.get_text() for text in fig.legends[0].get_texts())
+
+
+
+def test_heatmap_of_a_failure_field_greys_members_not_run_or_lost():
+    """Found by review: blowup_time drew members lost with their chunk (CHUNK_FAILED) or not run
+    (NOT_RUN, an interrupted sweep) white and counted them as "completed (no failure)", and
+    steps_done drew them as 0 steps. They have no value of any field: grey, in the legend. A run
+    that failed by itself (status 1) keeps its value, the point of a failure field."""
+    status = [0, 1, CHUNK_FAILED, CHUNK_FAILED, NOT_RUN, 0]
+    result = dataclasses.replace(synthetic_sweep(status, np.zeros(6)), steps_done=np.array([9, 4, 0, 0, 0, 9]),
+                                 blowup_time=np.array([np.nan, 0.4, np.nan, np.nan, np.nan, np.nan]))
+    lost = np.array([False, False, True, True, True, False])
+    for field in ("blowup_time", "steps_done"):
+        fig = plot_heatmap(result, field)
+        values = fig.axes[0].collections[0].get_array()  # not drawn by value: lost, or NaN (white)
+        np.testing.assert_array_equal(np.ma.getmaskarray(values).ravel(), lost | np.isnan(getattr(result, field)))
+        legend = [text.get_text() for text in fig.legends[0].get_texts()]
+        assert "lost (their chunk raised): 2" in legend and "not run: 1" in legend, (field, legend)
+        if field == "blowup_time":
+            assert "completed (no failure): 2" in legend, legend
 
 
 # -- derive, emit, demo -----------------------------------------------------------------------

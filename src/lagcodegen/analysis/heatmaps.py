@@ -278,12 +278,14 @@ def plot_heatmap(result: SweepResult, field: str | np.ndarray, *, title: str | N
     if name == "status":
         _draw_status(fig, ax, edges, status, label or default_label)
     else:
-        hidden = (status != Status.OK) & mask_failed
+        # members not run, or lost with their chunk, have no value of any field (found by review:
+        # blowup_time drew them white as "completed (no failure)", steps_done as 0 steps)
+        hidden = ((status != Status.OK) & mask_failed) | (status == NOT_RUN) | (status == CHUNK_FAILED)
         _draw_values(fig, ax, edges, z, hidden, log, cmap, label or default_label)
     if nan_label is None:
         nan_label = "completed (no failure)" if name == "blowup_time" else "no value (NaN)"
     handles = _draw_failed(ax, edges, status, z, mask_failed and name != "status", nan_label,
-                           log and name != "status")
+                           log and name != "status", lost=name != "status")
     ax.set_xscale("log" if x_log else "linear")
     ax.set_yscale("log" if y_log else "linear")
     for axis, values, is_log in ((ax.xaxis, x_axis, x_log), (ax.yaxis, y_axis, y_log)):
@@ -380,20 +382,24 @@ def _draw_status(fig, ax, edges, status, label) -> None:
     bar.ax.set_yticklabels(names)
 
 
-def _draw_failed(ax, edges, status, z, paint: bool, nan_label: str, log: bool = False) -> list:
-    """Grey cells for failed / not-run members (when ``paint``), cells of their own colour for
+def _draw_failed(ax, edges, status, z, paint: bool, nan_label: str, log: bool = False, lost: bool = True) -> list:
+    """Grey cells for failed members (when ``paint``) and for members not run or lost with their
+    chunk (when ``lost``: they have no value even of a failure field), cells of their own colour for
     infinite values (and values <= 0 on a log scale); legend handles for them and NaN."""
     from matplotlib.colors import ListedColormap
     from matplotlib.patches import Patch
 
     handles = []
-    failed, not_run = (status != Status.OK) & (status != NOT_RUN), status == NOT_RUN
-    for cells, grey, text in ((failed, _FAILED_GREY, "failed (status != ok)"), (not_run, _NOT_RUN_GREY, "not run")):
-        if cells.any() and paint:
+    not_run, chunk_failed = status == NOT_RUN, status == CHUNK_FAILED
+    failed = (status != Status.OK) & ~not_run & ~chunk_failed
+    for cells, grey, text, drawn in ((failed, _FAILED_GREY, "failed (status != ok)", paint),
+                                     (chunk_failed, _FAILED_GREY, "lost (their chunk raised)", paint or lost),
+                                     (not_run, _NOT_RUN_GREY, "not run", paint or lost)):
+        if cells.any() and drawn:
             ax.pcolormesh(edges[0], edges[1], np.ma.masked_where(~cells, np.ones(z.shape)),
                           cmap=ListedColormap([grey]), shading="flat")
             handles.append(Patch(facecolor=grey, label=f"{text}: {int(cells.sum())}"))
-    shown = (status == Status.OK) | (not paint)  # the members whose own value is drawn
+    shown = ((status == Status.OK) | (not paint)) & ~(lost & (not_run | chunk_failed))  # members drawn by value
     # an infinite value is a blow-up, not a missing one: its own colour (found by review: the
     # worst members of a sweep were white and counted as "no value (NaN)")
     for cells, colour, text in ((np.isposinf(z) & shown, _INFINITE_COLOURS[0], "+inf"),

@@ -229,7 +229,10 @@ def scene_names(point_names: Sequence[str], points: Sequence[str] | None = None,
         if not chosen:
             raise AnimationError(f"{prefix}points is empty; choose from {', '.join(point_names)}")
         known = dict(zip(drawn, drawn))
-        drawn = tuple(dict.fromkeys(_known(name, known, f"{prefix}points", point_names) for name in chosen))
+        picked = set(_known(name, known, f"{prefix}points", point_names) for name in chosen)
+        # in the model's order, as the default chain promises (found by review: points=bob2,bob1 drew a
+        # rod from the hinge to bob2)
+        drawn = tuple(name for name in point_names if name in picked)
     index = {ORIGIN: 0} | {name: i for i, name in enumerate(drawn, start=1)}
     if links is None:
         pairs = tuple(zip((ORIGIN,) + drawn[:-1], drawn))
