@@ -247,6 +247,9 @@ def test_late_found_arguments_are_refused_before_compiling(tmp_path, capsys, mon
         "x, F = me.dynamicsymbols('x F'); m, k = sp.symbols('m k', positive=True)\n"
         "model = Model('driven', [x], [m, k], kinetic_energy=m * x.diff()**2 / 2, potential_energy=k * x**2 / 2,\n"
         "              generalized_forces={x: F}, inputs=[F], parameter_values={'m': 1.0, 'k': 4.0})\n")
+    short, with_nan = tmp_path / "short.csv", tmp_path / "with_nan.csv"
+    short.write_text("t,F\n0,0\n1,1\n2,0\n")
+    with_nan.write_text("t,F\n0,0\n1,nan\n2,0\n")
     cases = [
         (["sweep", "double_pendulum", "--grid", "m2=0.5,1,0.5", "--grid", "l2=1,2", "--x0", "q1=1,q2=0",
           "--t-end", "0.5", "--h", "1e-3", "--heatmap", tmp_path / "map.png"], ["--heatmap", "'m2'", "repeats 0.5"]),
@@ -254,8 +257,27 @@ def test_late_found_arguments_are_refused_before_compiling(tmp_path, capsys, mon
           "--out", tmp_path / "scene.gif"], ["speed 0.0001", "frames"]),
         (["simulate", model_file, "--x0", "x=0", "--t-end", "1", "--h", "1e-3", "--input",
           f"F={tmp_path / 'no_such_table.csv'}"], ["--input F", "no_such_table.csv"]),
+        # found by review (session 17): these three were refused only after the compile
+        (["simulate", "double_pendulum", "--x0", "q1=1,q2=0", "--t-end", "1", "--h", "1e-3", "--stride", "2000"],
+         ["--stride 2000", "1000 steps"]),
+        (["simulate", model_file, "--x0", "x=0", "--t-end", "3", "--h", "1e-3", "--input", f"F={short}"],
+         ["--input F", "covers t = 0 .. 2", "t = 0 .. 3"]),
+        (["simulate", model_file, "--x0", "x=0", "--t-end", "2", "--h", "1e-3", "--input", f"F={with_nan}"],
+         ["--input F", "row 2", "nan", "not finite"]),
+        (["sweep", "double_pendulum", "--grid", "m2=0.5:inf:3", "--x0", "q1=1,q2=0", "--t-end", "1", "--h", "1e-3"],
+         ["--grid 'm2'", "finite", "0.5:inf"]),
     ]
     for argv, culprits in cases:
         message = one_line_error(argv, capsys)
         for culprit in culprits:
             assert culprit in message, (culprit, message)
+
+
+def test_sweep_members_off_their_constraints_are_refused(capsys):
+    """Found by review: `sweep cartesian_pendulum --grid x=0.1,0.5 --x0 y=-1` ran both members with
+    exit 0, each holding its offset (phi = x^2 + y^2 - 1 = 0.01 and 0.25, by hand: rods of 1.005 and
+    1.118), where `simulate --x0 x=0.5,y=-1` refuses the start. Now the sweep refuses it too, naming
+    the worst member."""
+    message = one_line_error(["sweep", "cartesian_pendulum", "--grid", "x=0.1,0.5", "--x0", "y=-1", "--t-end",
+                              "0.01", "--h", "1e-3"], capsys)
+    assert "2 member(s) start off the constraints" in message and "member 1 (x = 0.5) with 0.25" in message

@@ -175,6 +175,10 @@ def _input_table(name: str, path: Path) -> tuple:
         raise UsageError(f"--input {name}: cannot read {path} as a CSV table of numbers ({error})") from None
     if table.ndim != 2 or table.shape[0] < 1 or table.shape[1] != 2:
         raise UsageError(f"--input {name}: {path} must have two columns (time, value), got shape {table.shape}")
+    bad = np.flatnonzero(~np.isfinite(table).all(axis=1))
+    if bad.size:  # before the compile (found by review: refused only after it)
+        raise UsageError(f"--input {name}: {path} row {int(bad[0]) + 1} of its numbers, "
+                         f"{', '.join(f'{v:g}' for v in table[bad[0]])}, is not finite")
     return table[:, 0], table[:, 1]
 
 
@@ -218,6 +222,8 @@ def parse_axis(item: str) -> tuple:
                          "(numbers start and stop, an integer count)") from None
     if count < 1:
         raise UsageError(f"--grid {name!r}: count must be at least 1, got {count}")
+    if not (math.isfinite(start) and math.isfinite(stop)):  # found by review: inf reached numpy as nan
+        raise UsageError(f"--grid {name!r}: start and stop must be finite, got {start:g}:{stop:g}")
     from ..run.arguments import output_limit
 
     if 8 * count > output_limit():  # found by review: 1e9 values were allocated, then "out of memory"

@@ -6,6 +6,7 @@ import math
 import os
 import sys
 import time
+import warnings
 from pathlib import Path
 
 from ..run.inputs import InputError
@@ -79,6 +80,9 @@ def check_steps(args, n_state: int, members: int = 1, keep: bool = True) -> int:
         steps = step_count(0.0, args.t_end, args.h)
     except ValueError as error:
         raise UsageError(f"--t-end {args.t_end:g} / --h {args.h:g}: {error}") from None
+    if getattr(args, "stride", 1) > steps:  # before the compile (found by review: refused only after it)
+        raise UsageError(f"--stride {args.stride} exceeds the {steps} steps of --t-end {args.t_end:g} / --h "
+                         f"{args.h:g}: only the initial state would be kept; use --stride <= {steps}")
     budget = physical_memory() * MEMORY_SHARE
     row = members * (n_state + 1) * 8  # float64 state and time of every member per sample
     n_out = steps // args.stride + 1
@@ -89,6 +93,21 @@ def check_steps(args, n_state: int, members: int = 1, keep: bool = True) -> int:
                          f"machine's memory ({format_bytes(budget / MEMORY_SHARE)}): raise --stride "
                          f"to at least {stride}")
     return steps
+
+
+def run_inputs(args) -> dict | None:
+    """``--input`` values (`parse_inputs`), every table checked to cover the run 0 .. --t-end before
+    anything is compiled (found by review: a short table was refused only after the compile)."""
+    from ..run.inputs import InputError, check_cover
+
+    inputs = parse_inputs(args.input)
+    for name, value in (inputs or {}).items():
+        if isinstance(value, tuple):
+            try:
+                check_cover(value[0], 0.0, args.t_end, args.h, repr(name))
+            except InputError as error:
+                raise UsageError(f"--input {name}: {error}") from None
+    return inputs
 
 
 def physical_memory() -> float:
@@ -267,7 +286,7 @@ def cmd_simulate(args) -> int:
     steps = check_steps(args, eom.n_state + bool(args.energy))
     if args.energy and not _has_energy(eom):
         raise UsageError(f"--energy: model {eom.name!r} has no energy expression")
-    inputs = parse_inputs(args.input)  # found by review: a table that cannot be read was found after the compile
+    inputs = run_inputs(args)  # found by review: a table that cannot be read was found after the compile
     start = time.perf_counter()
     system = compile_for(eom, args.method, fixed, energy=args.energy, points=True)
     compile_time, start = time.perf_counter() - start, time.perf_counter()
@@ -426,6 +445,7 @@ def print_sweep_summary(result, field: str, elapsed: float, compile_time: float,
 
 def cmd_sweep(args) -> int:
     from ..analysis.heatmaps import plot_heatmap
+    from ..run.drift import StartOffConstraintsWarning
     from ..run.sweep import CHUNK_FAILED, NOT_RUN, sweep
 
     if bool(args.grid) == bool(args.table):
@@ -446,7 +466,7 @@ def cmd_sweep(args) -> int:
         if name in [q.name for q in eom.q]:
             x0.setdefault(name, float(members[name][0]))
     field = check_sweep_outputs(args, members, eom)
-    inputs = parse_inputs(args.input)
+    inputs = run_inputs(args)
     both = sorted(set(inputs or ()) & set(members))
     if both:  # found by review: the swept values won and --input was silently ignored
         raise UsageError(f"--input {both[0]!r} is swept by --grid/--table too; drop one of them")
@@ -456,12 +476,16 @@ def cmd_sweep(args) -> int:
     client = connect(args.scheduler) if args.scheduler is not None else None
     start = time.perf_counter()
     try:
-        result = sweep(system, **({"grid": members} if args.grid else {"members": members}), x0=x0,
-                       t_end=args.t_end, h=args.h, method=args.method, params=params,
-                       trajectories=args.trajectories, stride=args.stride, threads=args.threads, client=client,
-                       project=args.project, inputs=inputs, hold=args.hold)
+        with warnings.catch_warnings():  # as simulate refuses such a start (found by review: exit 0)
+            warnings.simplefilter("error", StartOffConstraintsWarning)
+            result = sweep(system, **({"grid": members} if args.grid else {"members": members}), x0=x0,
+                           t_end=args.t_end, h=args.h, method=args.method, params=params,
+                           trajectories=args.trajectories, stride=args.stride, threads=args.threads, client=client,
+                           project=args.project, inputs=inputs, hold=args.hold)
     except InputError as error:
         raise UsageError(f"--input: {error}") from None
+    except StartOffConstraintsWarning as error:
+        raise UsageError(f"{error}; give --x0 on the constraints for every swept value") from None
     finally:
         if client is not None:
             client.close()

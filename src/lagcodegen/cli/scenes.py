@@ -10,10 +10,9 @@ from .arguments import (
     UsageError,
     add_run_arguments,
     load_model,
-    parse_inputs,
     positive_float,
 )
-from .runs import check_steps, compile_for, interruptible, prepare_run
+from .runs import check_steps, compile_for, interruptible, prepare_run, run_inputs
 
 #: the step of an animation run unless --h says otherwise (a frame every 40 samples at 25 fps)
 ANIMATE_H = 1e-3
@@ -116,7 +115,7 @@ def cmd_animate(args) -> int:
     eom, fixed, params, x0 = prepare_run(args, "animate", model=model)
     check_steps(args, 2 * eom.n + 1 + 3 * len(eom.points))
     energy = eom.energy is not None
-    inputs = parse_inputs(args.input)  # a table that cannot be read, before the compile
+    inputs = run_inputs(args)  # a table that cannot be read or is short, before the compile
     system = compile_for(eom, args.method, fixed, energy=energy, points=True)
     try:
         run = interruptible(lambda: simulate(

@@ -20,6 +20,11 @@ class ConstraintDriftWarning(UserWarning):
     tolerance (``simulate(..., drift_tolerance=...)``)."""
 
 
+class StartOffConstraintsWarning(ConstraintDriftWarning):
+    """Sweep members start off their constraints with multipliers: a run holds the offset it starts
+    with (the command line's sweep refuses them, as its simulate refuses such a start)."""
+
+
 #: default ``drift_tolerance`` on max |phi| per precision: well above the rounding of a run
 DRIFT_TOLERANCE = {"double": 1e-6, "float": 1e-3}
 

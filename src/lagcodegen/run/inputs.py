@@ -194,11 +194,16 @@ def _table(times, values, names, what: str) -> InputTable:
 
 
 def _check_cover(table: InputTable, t0: float, t_end: float, h: float, what: str) -> None:
-    if table.times.size == 1:
+    check_cover(table.times, t0, t_end, h, what)
+
+
+def check_cover(times, t0: float, t_end: float, h: float, what: str) -> None:
+    """InputError unless a table of ``times`` (one knot: a constant) covers the run t0 .. t_end."""
+    if len(times) == 1:
         return
     slack = _COVER_SLACK * abs(h)
-    if table.times[0] > t0 + slack or table.times[-1] < t_end - slack:
-        raise InputError(f"input {what}: the table covers t = {table.times[0]:g} .. {table.times[-1]:g}, "
+    if times[0] > t0 + slack or times[-1] < t_end - slack:
+        raise InputError(f"input {what}: the table covers t = {times[0]:g} .. {times[-1]:g}, "
                          f"shorter than the run t = {t0:g} .. {t_end:g}")
 
 

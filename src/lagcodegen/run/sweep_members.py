@@ -150,7 +150,7 @@ def check_member_starts(system: CompiledSystem, xs, ps, t0: float, columns, valu
         if offset is not None and not offset <= tolerance:
             off.append((i, offset))
     _warn_off(off, f"start off the constraints of model {layout.model!r} (max |phi| or |A u + dphi/dt| > "
-                   f"{tolerance:g})", "start each member on its constraints", columns, values)
+                   f"{tolerance:g})", "start each member on its constraints", columns, values, start=True)
 
 
 def check_member_ends(system: CompiledSystem, x_final, ps, t_end: float, status, columns, values) -> None:
@@ -203,17 +203,18 @@ def _check_configuration_ends(system: CompiledSystem, x_final, ps, t_end: float,
                    "smaller h", columns, values)
 
 
-def _warn_off(off: list, what: str, advice: str, columns, values) -> None:
-    """One `ConstraintDriftWarning` for the members (index, offset) in ``off``, naming the worst."""
+def _warn_off(off: list, what: str, advice: str, columns, values, start: bool = False) -> None:
+    """One `ConstraintDriftWarning` (at the ``start``: `StartOffConstraintsWarning`) for the members
+    (index, offset) in ``off``, naming the worst."""
     import warnings
 
-    from .drift import ConstraintDriftWarning
+    from .drift import ConstraintDriftWarning, StartOffConstraintsWarning
 
     if off:
         worst = max(off, key=lambda item: item[1] if item[1] == item[1] else np.inf)
         example = _member_text(columns, values[worst[0]])
         warnings.warn(f"{len(off)} member(s) {what}, e.g. member {worst[0]} ({example}) with {worst[1]:.3g}: {advice}",
-                      ConstraintDriftWarning, stacklevel=4)
+                      StartOffConstraintsWarning if start else ConstraintDriftWarning, stacklevel=4)
 
 
 def _member_text(columns, row) -> str:
