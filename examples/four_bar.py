@@ -41,7 +41,8 @@ def main() -> None:
     print(f"\nchange-point lengths {catalog.FOUR_BAR_FOLDING}, all links flat on the x axis:")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # the run warns; we print its message
-        run = simulate(system, [0.0, 0.0, 0.0, 1.0, 0.0, 0.0], 0.1, 1e-4, "rk4", params=folding)
+        # crank rate 1, rocker rate l1 / l3 = 0.5: on the velocity constraint l1 w1 + l2 w2 - l3 w3 = 0
+        run = simulate(system, [0.0, 0.0, 0.0, 1.0, 0.0, 0.5], 0.1, 1e-4, "rk4", params=folding)
     print(f"  status {run.status.name} at step {run.failed_step}: {run.message}")
 
 
