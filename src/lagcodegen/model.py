@@ -15,6 +15,7 @@ A model is stated in one of three ways, all consumed by `derive.derive_equations
 from __future__ import annotations
 
 import math
+import numbers
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -337,6 +338,9 @@ class Model:
                         f"parameter {key.name!r} has {by_name[key.name].assumptions0}; use the same Symbol")
                 raise ModelError(f"value given for {key!r}, which is not a declared parameter (declared: {declared})")
             values[p] = finite_number(value, f"parameter_values[{p.name!r}]")
+            wrong = sign_error(p.name, values[p], sign_assumption(p), f"parameter_values[{p.name!r}]")
+            if wrong:
+                raise ModelError(f"model {self.name!r}: {wrong}")
         return values
 
     def _checked_tree(self) -> tuple:
@@ -621,12 +625,43 @@ def check_well_defined(what: str, expr: sp.Basic) -> None:
                              "principal root of a negative number; write the real value (e.g. -1 for (-1)**(1/3))")
 
 
+#: sign assumptions of a parameter Symbol, and the values each admits: the sign, or 0 (the limit a
+#: sweep of a mass ratio reaches; the run's singularity monitor speaks for it), not the other sign
+SIGN_ASSUMPTIONS = {"positive": lambda v: v >= 0, "nonnegative": lambda v: v >= 0,
+                    "negative": lambda v: v <= 0, "nonpositive": lambda v: v <= 0}
+
+
+def sign_assumption(symbol) -> str | None:
+    """The sign assumption ``symbol`` was declared with (positive=True, ...), or None."""
+    for name in SIGN_ASSUMPTIONS:
+        if getattr(symbol, f"is_{name}", None) is True:
+            return name
+    return None
+
+
+def sign_error(name: str, value: float, assumption: str | None, what: str) -> str | None:
+    """The message for a ``value`` of parameter ``name`` of the sign its declared ``assumption``
+    excludes: sympy simplified the equations under it (sqrt(l**2) -> l for a positive l), so they need
+    not hold for such a value (found by review: m1 = -1 for a positive m1 ran until a singular mass
+    matrix, blamed on the step)."""
+    if assumption is None or SIGN_ASSUMPTIONS[assumption](value):
+        return None
+    return (f"{what} = {value!r}, but {name!r} is declared {assumption} (sympy simplified the equations under "
+            "that assumption, so they need not hold for this value); give a value of that sign, or declare "
+            "the symbol without the assumption")
+
+
 def finite_number(value: Any, what: str) -> float:
     """``value`` as a finite float, or a `ModelError` naming ``what``."""
-    if isinstance(value, bool) or isinstance(value, (str, bytes)):
+    # a complex value of numpy's converts to float dropping its imaginary part (found by review)
+    if isinstance(value, (bool, str, bytes)) or (isinstance(value, numbers.Complex)
+                                                 and not isinstance(value, numbers.Real)):
         raise ModelError(f"{what} must be a finite number, got {type(value).__name__} {value!r}")
     try:
         number = float(value)
+    except OverflowError:  # an int beyond the double range (found by review: a bare OverflowError)
+        raise ModelError(f"{what} must be a finite number, got an integer of {len(str(abs(int(value))))} digits, "
+                         "beyond the double range") from None
     except (TypeError, ValueError):
         raise ModelError(f"{what} must be a finite number, got {type(value).__name__} {value!r}") from None
     if not math.isfinite(number):

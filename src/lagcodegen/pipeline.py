@@ -39,7 +39,7 @@ from .codegen.printer import DEFAULT_TRIG
 from .codegen.reduce import reduce_expressions
 from .codegen.render import CSources, KernelLayout, render_sources, template_dir
 from .integrators.schemes import DEFAULT_METHODS, required_outputs
-from .model import ROUTE_TREE, Model
+from .model import ROUTE_TREE, Model, sign_assumption, sign_error
 from .native import cache
 from .native.build import CompiledSystem, build_module
 from .native.build_cost import estimate_build_cost
@@ -80,7 +80,7 @@ def compile_model(model: Model | EquationsOfMotion, *, outputs=None, fixed: Mapp
         sweep first needs them (`CompiledSystem.lane_variant`): it doubles the compile time.
     lane_trig : {"fast", "libm"}
         sin/cos in the lane kernel: vectorizable polynomials, or libm (bitwise equal to the
-        scalar sweep, slower); see `render_sources`.
+        scalar sweep of a ``trig="libm"`` kernel, slower); see `render_sources`.
 
     Warns
     -----
@@ -253,6 +253,10 @@ def _checked_fixed(eom: EquationsOfMotion, fixed: Mapping | None) -> dict:
             raise KernelError(f"cannot fix {name!r}: {what} of model {eom.name!r} "
                               f"(parameters: {', '.join(sorted(parameters)) or 'none'})")
         checked[name] = _fixed_value(name, value)
+        symbol = next(p for p in eom.parameters if p.name == name)
+        wrong = sign_error(name, checked[name], sign_assumption(symbol), f"fixed parameter {name!r}")
+        if wrong:
+            raise KernelError(wrong)
     return checked
 
 
@@ -263,14 +267,19 @@ def _fixed_value(name: str, value) -> float:
     elif isinstance(value, sp.Basic):
         number = float(value) if value.is_number and value.is_real else None
     elif isinstance(value, numbers.Real):
-        number = float(value)
+        try:
+            number = float(value)
+        except OverflowError:  # an int beyond the double range (found by review: a bare OverflowError)
+            number = math.inf
     else:
         number = None
     if number is None:
         raise KernelError(f"fixed parameter {name!r} must be a real number, got "
                           f"{type(value).__name__} {value!r}")
     if not math.isfinite(number):
-        raise KernelError(f"fixed parameter {name!r} must be finite, got {value!r}")
+        integral = isinstance(value, numbers.Integral)
+        shown = f"an integer of {len(str(abs(int(value))))} digits" if integral else repr(value)
+        raise KernelError(f"fixed parameter {name!r} must be finite, got {shown}")
     return number
 
 

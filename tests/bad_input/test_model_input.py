@@ -360,3 +360,19 @@ def test_a_jump_in_a_piecewise_energy_is_named():
     assert derive_equations(oscillator(potential_energy=sp.Piecewise((V_x, k > 1), (2 * V_x, True)))).forcing[0] != 0
     with raises_naming("generalized force along x_d", "Derivative(floor(x), x)"):
         derive_equations(oscillator(potential_energy=V_x + sp.floor(x)))
+
+
+def test_a_value_beyond_the_double_range_or_complex_is_named():
+    """Found by review: parameter_values={k: 10**400} and fixed={"k": 10**400} raised a bare
+    OverflowError, and numpy's complex 4+3j became 4.0 with only numpy's ComplexWarning."""
+    import numpy as np
+
+    from lagcodegen.codegen.outputs import KernelError
+    from lagcodegen.pipeline import compile_model
+
+    with raises_naming("parameter_values['k']", "integer of 401 digits", "beyond the double range"):
+        oscillator(parameter_values={k: 10 ** 400})
+    with raises_naming("parameter_values['k']", "complex128"):
+        oscillator(parameter_values={k: np.complex128(4 + 3j)})
+    with pytest.raises(KernelError, match="fixed parameter 'k' must be finite, got an integer of 401 digits"):
+        compile_model(oscillator(), fixed={"k": 10 ** 400})

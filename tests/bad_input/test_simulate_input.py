@@ -194,3 +194,40 @@ def test_states_and_parameters_keyed_by_symbols_are_read_by_name(pendulum):
     assert _state_start(pendulum.layout, {q1: 1.0, q2: 0.5}) == [1.0, 0.5, 0.0, 0.0]
     with pytest.raises(ValueError, match="x0 names 'q1' twice"):
         run(pendulum, x0={q1: 1.0, "q1": 2.0, "q2": 0.0})
+
+
+def test_a_value_of_the_sign_a_parameter_is_declared_without_is_named(pendulum, tmp_path):
+    """Found by review: --param m1=-1 for the double pendulum's m1 (declared positive=True) ran until
+    a singular mass matrix, the message blaming the step and never naming m1. sympy simplified the
+    equations under the assumption (sqrt(l**2) -> l), so they need not hold for such a value. A
+    model's own value or a fixed one is refused; a run's is warned about by name and goes on (a
+    sweep's member with a negative mass fails alone); 0 (a mass ratio's limit) is neither."""
+    import sympy as sp
+    import sympy.physics.mechanics as me
+
+    from lagcodegen import Model, ModelError
+    from lagcodegen.codegen.outputs import KernelError
+    from lagcodegen.pipeline import compile_model
+    from lagcodegen.run.simulate import ParameterSignWarning
+    from lagcodegen.run.sweep import sweep
+
+    with pytest.warns(ParameterSignWarning, match=r"parameter 'm1' = -1.0, but 'm1' is declared positive"):
+        run(pendulum, params={"m1": -1.0})
+    with pytest.warns(ParameterSignWarning, match=r"swept 'm2' \(member 1\) = -0.5, .*declared positive .*"
+                                                  r"\(2 of 3 members\)"):
+        sweep(pendulum, {"m2": [1.0, -0.5, -2.0]}, x0=X0, t_end=0.1, h=0.01)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ParameterSignWarning)
+        run(pendulum, params={"m2": 0.0}, check_stability=False)
+    x = sp.Symbol("x")
+    q = me.dynamicsymbols("q")
+    k = sp.Symbol("k", nonnegative=True)
+    oscillator = dict(kinetic_energy=q.diff() ** 2 / 2, potential_energy=k * q ** 2 / 2)
+    with pytest.raises(ModelError, match=r"parameter_values\['k'\] = -4.0, but 'k' is declared nonnegative"):
+        Model("o", [q], [k], parameter_values={k: -4.0}, **oscillator)
+    with pytest.raises(KernelError, match=r"fixed parameter 'k' = -4.0, but 'k' is declared nonnegative"):
+        compile_model(Model("o", [q], [k], **oscillator), fixed={"k": -4.0}, methods=("rk4",), cache_dir=tmp_path)
+    assert x.is_positive is None
+    plain = sp.Symbol("k")  # no assumption: any value
+    compile_model(Model("o", [q], [plain], parameter_values={"k": -4.0}, kinetic_energy=q.diff() ** 2 / 2,
+                        potential_energy=plain * q ** 2 / 2), methods=("rk4",), cache_dir=tmp_path)

@@ -16,7 +16,8 @@ def test_steady_eigenvalues_differentiate_abs_on_its_branch(tau):
     derivative in the imaginary part). By hand, J phi'' = tau - c phi' |phi'| spins steadily at
     w0 = sign(tau) sqrt(|tau| / c), and a perturbation of phi' decays at -2 c |w0| / J."""
     phi = me.dynamicsymbols("phi")
-    J, c, torque = sp.symbols("J c tau", positive=True)
+    J, c = sp.symbols("J c", positive=True)
+    torque = sp.Symbol("tau", real=True)  # either sign (it was declared positive and given -8)
     eom = derive_equations(Model("flywheel", [phi], [J, c, torque], kinetic_energy=J * phi.diff() ** 2 / 2,
                                  generalized_forces={phi: torque - c * phi.diff() * sp.Abs(phi.diff())},
                                  parameter_values={"J": 2.0, "c": 0.5, "tau": tau}))

@@ -12,6 +12,7 @@ from pathlib import Path
 import jinja2
 import sympy as sp
 
+from ..model import sign_assumption
 from ..status import STATUS_TABLE
 from .csyntax import PROJECTION_STALL, UNIT_ROUNDOFF, EmitError, comment_text, literal
 from .kernel_text import KernelWriter, Names, names_for
@@ -85,6 +86,7 @@ class KernelLayout:
     dependent_speeds: tuple = ()
     reactions: tuple = ()
     formulation: str = ""
+    signs: tuple = ()  # (name, "positive" ...): free parameters' sign assumptions (model.sign_assumption)
 
     @property
     def n_q(self) -> int:
@@ -170,7 +172,7 @@ def render_sources(system: ReducedSystem, precision: str = "double", model_name:
         side for the explicit methods (see `lane_kernel.py`); host use, it is never in ``generated/``.
     lane_trig : {"fast", "libm"}
         sin/cos inside the lane loops: branch-free polynomials (vectorizable), or libm's (then the
-        lane kernel equals the scalar sweep bit for bit, for tests).
+        lane kernel equals the scalar sweep of a ``trig="libm"`` kernel bit for bit, for tests).
     """
     if precision not in PRECISIONS:
         raise EmitError(f"precision must be one of {PRECISIONS}, got {precision!r}")
@@ -270,6 +272,7 @@ def _layout(system: ReducedSystem, names: Names, real: str, model_name: str, fun
         inputs=tuple(s.name for s in system.inputs), measurements=tuple(system.measurements),
         dependent_speeds=tuple(s.name for s in system.u_dependent), reactions=tuple(s.name for s in system.reactions),
         formulation=system.formulation,
+        signs=tuple((p.name, sign_assumption(p)) for p in system.free_parameters if sign_assumption(p)),
         defaults=tuple((p.name, system.parameter_values[p]) for p in system.free_parameters
                        if p in system.parameter_values))
 

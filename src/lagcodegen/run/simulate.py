@@ -14,6 +14,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..integrators.schemes import get_scheme
+from ..model import SIGN_ASSUMPTIONS, sign_error
 from ..native.build import CompiledSystem
 from ..status import Status
 from .arguments import (  # noqa: F401
@@ -169,7 +170,26 @@ def parameter_vector(system: CompiledSystem, params: Mapping | None = None) -> n
     bad = [name for name, v in zip(layout.parameters, p) if not np.isfinite(v)]
     if bad:
         raise ValueError(f"parameter(s) {', '.join(bad)} are not finite")
+    check_signs(layout, p[None, :], lambda name, member: f"parameter {name!r}")
     return p
+
+
+class ParameterSignWarning(UserWarning):
+    """A parameter's value has the sign its declared assumption excludes (positive=True and a
+    negative value): the equations need not hold for it. The run goes on (a sweep's member with a
+    negative mass fails alone), and this names the parameter where the failure would not."""
+
+
+def check_signs(layout, ps: np.ndarray, what) -> None:
+    """A `ParameterSignWarning` for the first value (rows of ``ps``: members) of the sign a free
+    parameter's assumption excludes, with how many rows have one; ``what(name, member)`` names it."""
+    for name, assumption in layout.signs:
+        column = ps[:, layout.parameters.index(name)]
+        wrong = np.flatnonzero(~SIGN_ASSUMPTIONS[assumption](column))
+        if wrong.size:
+            others = f" ({wrong.size} of {len(column)} members)" if len(column) > 1 else ""
+            warnings.warn(sign_error(name, float(column[wrong[0]]), assumption, what(name, int(wrong[0]))) + others,
+                          ParameterSignWarning, stacklevel=4)
 
 
 def kernel_vector(system: CompiledSystem, values, names, what: str) -> np.ndarray:

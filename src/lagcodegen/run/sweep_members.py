@@ -9,7 +9,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 
 from ..native.build import CompiledSystem
-from .simulate import initial_state, parameter_vector, real_dtype
+from .simulate import check_signs, initial_state, parameter_vector, real_dtype
 
 
 def cartesian_members(grid: Mapping[str, Sequence[float]]) -> tuple[tuple, np.ndarray, tuple]:
@@ -120,6 +120,8 @@ def member_arrays(system: CompiledSystem, columns, values, x0, params):
             if beyond.size:  # finite doubles beyond the float range
                 raise ValueError(f"swept {name!r} = {float(values[beyond[0], j])!r} (member {beyond[0]}) is beyond the "
                                  f"range of the {layout.precision} kernel")
+    if layout.parameters:
+        check_signs(layout, ps, lambda name, member: f"swept {name!r} (member {member})")
     return np.ascontiguousarray(xs, dtype=dtype), np.ascontiguousarray(ps, dtype=dtype)
 
 
