@@ -56,6 +56,11 @@ def _is_coordinate(obj: Any) -> bool:
     return isinstance(obj, AppliedUndef) and obj.args == (TIME,)
 
 
+def _function_assumptions(f) -> dict:
+    """The assumptions a dynamicsymbol was declared with (real=True, ...); {} for none."""
+    return dict(getattr(f.func, "_kwargs", None) or {})
+
+
 def _dynamic_functions(expr: sp.Basic) -> set:
     """Applied undefined functions (q(t), x(t), ...) inside ``expr``."""
     return {f for f in expr.atoms(AppliedUndef)}
@@ -232,6 +237,7 @@ class Model:
         set_("dissipation", _as_expr(self.dissipation, "dissipation"))
         if self.kinetic_energy is not None:
             set_("kinetic_energy", _as_expr(self.kinetic_energy, "kinetic_energy"))
+        self._check_coordinate_assumptions()
         set_("generalized_forces", self._checked_forces())
         set_("bodies", tuple(self.bodies))
         set_("loads", tuple(_as_load(load) for load in self.loads))
@@ -396,6 +402,25 @@ class Model:
                              "motion constraint(s): name one per motion constraint")
         return named
 
+    def _check_coordinate_assumptions(self) -> None:
+        """A function of t named like a coordinate but with other assumptions (dynamicsymbols('x',
+        real=True) against dynamicsymbols('x')) is another function to sympy: named as such (found by
+        review: the messages said x(t) is not a coordinate, coordinates: x(t))."""
+        by_name = {q.func.__name__: q for q in self.coordinates if isinstance(q, AppliedUndef)}
+        given = [self.kinetic_energy, self.potential_energy, self.dissipation, *self.constraints,
+                 *self.motion_constraints]
+        if isinstance(self.generalized_forces, Mapping):
+            given += [*self.generalized_forces.keys(), *self.generalized_forces.values()]
+        for expr in given:
+            if not isinstance(expr, sp.Basic):
+                continue
+            for f in _dynamic_functions(expr):
+                q = by_name.get(f.func.__name__)
+                if q is not None and f != q:
+                    raise ModelError(f"{f} has the assumptions {_function_assumptions(f)} but the coordinate {q} has "
+                                     f"{_function_assumptions(q)}: sympy takes them for two functions; use the same "
+                                     "dynamicsymbol")
+
     def _check_route(self) -> None:
         if self.tree:
             if self.formulation in ("elimination", "multipliers"):
@@ -467,6 +492,14 @@ class Model:
             except ValueError as error:
                 raise ModelError(f"{what} is not oriented relative to the inertial frame {self.frame}: "
                                  f"orient it with {frame}.orient_axis(...) ({error})") from None
+        try:
+            moving = self.origin.vel(self.frame)
+        except ValueError:  # no velocity set: fixed, as the route takes it
+            moving = 0
+        if moving != 0 and any(sp.simplify(e) != 0 for e in _vector_entries(moving)):
+            # found by review: a shaking table's velocity was dropped, the equations those of a fixed one
+            raise ModelError(f"origin {self.origin.name} moves in frame {self.frame} (velocity {moving}): the origin "
+                             "must be fixed; write the motion into the bodies' positions as functions of t")
         seen: dict = {}
         for body in self.bodies:  # found by review: a body listed twice had its mass counted twice
             if id(body) in seen:
@@ -495,9 +528,25 @@ class Model:
                 raise ModelError(f"the position of body {body.name} contains the speed {rates[0]}: positions "
                                  "depend on the coordinates and t only")
             exprs += [(f"position of body {body.name}", entry) for entry in position]
+            if isinstance(body, me.RigidBody) and self.frame is not None:
+                # found by review: an input in it was accepted and its rate dropped from the equations
+                exprs += [(f"angular velocity of body {body.name}", entry)
+                          for entry in _vector_entries(body.frame.ang_vel_in(self.frame))]
+            if self.sympy_model is None and body.potential_energy != 0:
+                # sympy's attribute for its Lagrangian(), which its KanesMethod ignores: counting it could
+                # double gravity, dropping it lost a spring (found by review: F = 0, status OK)
+                raise ModelError(f"body {body.name!r} carries a potential_energy ({body.potential_energy}), which "
+                                 "the bodies route does not read: give it as Model(potential_energy=...) (and "
+                                 "gravity as gravity=), and set the body's to 0")
         for load in self.loads:
             kind = "torque on frame" if load.is_torque else "force on point"
             exprs += [(f"{kind} {load.where.name}", entry) for entry in _vector_entries(load.vector)]
+            if not load.is_torque:  # as a body's position (found by review: a speed in it was dropped)
+                where = _vector_entries(load.where.pos_from(self.origin))
+                rates = sorted({d for entry in where for d in sp.sympify(entry).atoms(sp.Derivative)}, key=str)
+                if rates:
+                    raise ModelError(f"the position of the load's point {load.where.name} contains the speed "
+                                     f"{rates[0]}: positions depend on the coordinates and t only")
         for name, pos in self.points.items():
             if not isinstance(pos, me.Point):
                 if not isinstance(pos, (tuple, list)) or len(pos) not in (2, 3):
@@ -623,6 +672,11 @@ def check_well_defined(what: str, expr: sp.Basic) -> None:
         if power.is_number and power.is_extended_real is False:
             raise ModelError(f"{what} contains the complex constant {power} = {sp.N(power, 6)}: sympy takes the "
                              "principal root of a negative number; write the real value (e.g. -1 for (-1)**(1/3))")
+    # and a function outside its real domain (found by review: k asin(2) x^2 ran to "diverged")
+    for function in expr.atoms(sp.Function):
+        if function.is_number and function.is_extended_real is False:
+            raise ModelError(f"{what} contains the complex constant {function} = {sp.N(function, 6)}: its "
+                             "argument is outside the function's real domain")
 
 
 #: sign assumptions of a parameter Symbol, and the values each admits: the sign, or 0 (the limit a

@@ -376,3 +376,64 @@ def test_a_value_beyond_the_double_range_or_complex_is_named():
         oscillator(parameter_values={k: np.complex128(4 + 3j)})
     with pytest.raises(KernelError, match="fixed parameter 'k' must be finite, got an integer of 401 digits"):
         compile_model(oscillator(), fixed={"k": 10 ** 400})
+
+
+def _particle_on_a_line(name="ball", mass=m):
+    N, O = me.ReferenceFrame("N"), me.Point("O")
+    P = O.locatenew("P", x * N.x)
+    O.set_vel(N, 0)
+    P.set_vel(N, P.pos_from(O).dt(N))
+    return N, O, P, me.Particle(name, P, mass)
+
+
+def test_a_bodys_own_potential_energy_is_named_not_dropped():
+    """Found by review: Particle.potential_energy (sympy's attribute for its Lagrangian(), which its
+    KanesMethod ignores) was dropped on the bodies route: the spring k x^2/2 vanished, F = 0, status
+    OK. Counting it could double a gravity also given as gravity=, so it is refused by name; given
+    as Model(potential_energy=...) it gives F = -k x (by hand)."""
+    N, O, _, ball = _particle_on_a_line()
+    ball.potential_energy = k * x ** 2 / 2
+    with raises_naming("body 'ball' carries a potential_energy", "Model(potential_energy=...)"):
+        Model("spring_ball", [x], [m, k], bodies=[ball], frame=N, origin=O)
+    ball.potential_energy = 0
+    eom = derive_equations(Model("spring_ball", [x], [m, k], bodies=[ball], frame=N, origin=O,
+                                 potential_energy=k * x ** 2 / 2))
+    assert list(eom.forcing) == [-k * eom.q[0]]
+
+
+def test_the_bodies_route_refuses_what_it_would_drop():
+    """Found by review, each accepted with status OK and a wrong motion (by hand in each case):
+    an input s(t) in a rotor's angular velocity (th' + s): J th'' = -k th - J s', but s' was dropped;
+    a mass m0 (1 + sin(10 pi t)) that the constancy samples at t = -1.3, 0.4, 2.2 (zeros of the sine)
+    took as constant (m' x' dropped); an origin moving at V0 sin(t) (a shaking table) taken as fixed;
+    a load's point at x + c x' (the speed dropped from its partial velocity); a constant asin(2),
+    complex, which ran to "diverged"; and x(t) declared real=True against a coordinate x(t)
+    without, which the messages called "not a coordinate (coordinates: x(t))"."""
+    th, s = me.dynamicsymbols("th s")
+    J = sp.Symbol("J", positive=True)
+    N, O = me.ReferenceFrame("N"), me.Point("O")
+    R = N.orientnew("R", "Axis", [th, N.z])
+    R.set_ang_vel(N, (th.diff(t) + s) * N.z)
+    O.set_vel(N, 0)
+    rotor = me.RigidBody("rotor", O, R, J, (me.inertia(R, 0, 0, J), O))
+    with raises_naming("input 's' appears in angular velocity of body rotor"):
+        Model("rotor", [th], [J, k], bodies=[rotor], frame=N, origin=O, potential_energy=k * th ** 2 / 2,
+              inputs=[s])
+    N, O, P, _ = _particle_on_a_line()
+    shaking = me.Particle("b", P, m * (1 + sp.sin(10 * sp.pi * t) / 2))
+    with raises_naming("the mass of body 'b' changes with t"):
+        derive_equations(Model("shaker", [x], [m, k], bodies=[shaking], frame=N, origin=O,
+                               potential_energy=k * x ** 2 / 2))
+    N, O, P, ball = _particle_on_a_line()
+    O.set_vel(N, c * sp.sin(t) * N.x)
+    with raises_naming("origin O moves in frame N", "must be fixed"):
+        Model("table", [x], [m, c], bodies=[ball], frame=N, origin=O)
+    N, O, P, ball = _particle_on_a_line()
+    Q = O.locatenew("Q", (x + c * xd) * N.x)
+    with raises_naming("the position of the load's point Q contains the speed"):
+        Model("load", [x], [m, c], bodies=[ball], frame=N, origin=O, loads=[(Q, c * N.y)])
+    with raises_naming("potential_energy contains the complex constant asin(2)", "real domain"):
+        oscillator(potential_energy=k * sp.asin(2) * x ** 2)
+    x_real = me.dynamicsymbols("x", real=True)
+    with raises_naming("x(t) has the assumptions", "'real': True", "use the same dynamicsymbol"):
+        oscillator(potential_energy=k * x_real ** 2 / 2)
