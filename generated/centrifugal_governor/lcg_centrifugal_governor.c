@@ -581,6 +581,7 @@ static int lcg_centrifugal_governor_symplectic_euler_step(double t, double *x, c
     double *G = v + 1;
     double *b = G + 1;
     double *xs = b + 1;
+    double previous = 0.0;
     int i, k, iteration;
     lcg_centrifugal_governor_momentum(t, x, p, factor, G);
     for (i = 0; i < 1; ++i) {
@@ -592,7 +593,7 @@ static int lcg_centrifugal_governor_symplectic_euler_step(double t, double *x, c
     for (i = 0; i < 1; ++i) gauge[i] = factor[i * 1 + i] * factor[i * 1 + i];  /* Cholesky: D_i = L_ii^2 */
     for (i = 0; i < 1; ++i) v[i] = x[1 + i];
     for (i = 0; i < 1; ++i) xs[i] = x[i];
-    for (iteration = 0; iteration < 30; ++iteration) {
+    for (iteration = 0; iteration < 300; ++iteration) {
         double size = 0.0;
         for (i = 0; i < 1; ++i) xs[1 + i] = v[i];
         lcg_centrifugal_governor_momentum(t, xs, p, spare, G);
@@ -607,8 +608,11 @@ static int lcg_centrifugal_governor_symplectic_euler_step(double t, double *x, c
          * failure (found by review: a stiff spring's overflow was reported as one) */
         if (!isfinite(size)) return iteration == 0 ? LCG_NONFINITE_STATE : LCG_NEWTON_FAILED;
         if (size <= 1e-13) break;
+        /* past the Newton budget, go on only while each sweep contracts: h |d ud/du| < 1 */
+        if (iteration >= 30 && !(size <= 0.95 * previous)) return LCG_NEWTON_FAILED;
+        previous = size;
     }
-    if (iteration == 30) return LCG_NEWTON_FAILED;
+    if (iteration == 300) return LCG_NEWTON_FAILED;
     for (i = 0; i < 1; ++i) {  /* spare holds M(q) from the last iteration: p+ = M(q) v */
         double acc = 0.0;
         for (k = 0; k < 1; ++k) acc += spare[i * 1 + k] * v[k];

@@ -555,6 +555,7 @@ static int lcg_disk_spring_rod_symplectic_euler_step(double t, double *x, const 
     double *G = v + 2;
     double *b = G + 2;
     double *xs = b + 2;
+    double previous = 0.0;
     int i, k, iteration;
     lcg_disk_spring_rod_momentum(t, x, p, factor, G);
     for (i = 0; i < 2; ++i) {
@@ -566,7 +567,7 @@ static int lcg_disk_spring_rod_symplectic_euler_step(double t, double *x, const 
     for (i = 0; i < 2; ++i) gauge[i] = factor[i * 2 + i] * factor[i * 2 + i];  /* Cholesky: D_i = L_ii^2 */
     for (i = 0; i < 2; ++i) v[i] = x[2 + i];
     for (i = 0; i < 2; ++i) xs[i] = x[i];
-    for (iteration = 0; iteration < 30; ++iteration) {
+    for (iteration = 0; iteration < 300; ++iteration) {
         double size = 0.0;
         for (i = 0; i < 2; ++i) xs[2 + i] = v[i];
         lcg_disk_spring_rod_momentum(t, xs, p, spare, G);
@@ -581,8 +582,11 @@ static int lcg_disk_spring_rod_symplectic_euler_step(double t, double *x, const 
          * failure (found by review: a stiff spring's overflow was reported as one) */
         if (!isfinite(size)) return iteration == 0 ? LCG_NONFINITE_STATE : LCG_NEWTON_FAILED;
         if (size <= 1e-13) break;
+        /* past the Newton budget, go on only while each sweep contracts: h |d ud/du| < 1 */
+        if (iteration >= 30 && !(size <= 0.95 * previous)) return LCG_NEWTON_FAILED;
+        previous = size;
     }
-    if (iteration == 30) return LCG_NEWTON_FAILED;
+    if (iteration == 300) return LCG_NEWTON_FAILED;
     for (i = 0; i < 2; ++i) {  /* spare holds M(q) from the last iteration: p+ = M(q) v */
         double acc = 0.0;
         for (k = 0; k < 2; ++k) acc += spare[i * 2 + k] * v[k];

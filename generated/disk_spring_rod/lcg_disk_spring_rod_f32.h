@@ -54,7 +54,7 @@
 #define LCG_OK 0 /* success */
 #define LCG_SINGULAR_MASS_MATRIX 1 /* the mass matrix is singular or not positive definite, or a step changed its pivots more than 100-fold (a singular configuration crossed, or a step too coarse for the monitor: a smaller h tells) */
 #define LCG_NONFINITE_STATE 2 /* the state or its derivatives became NaN or infinite (the run diverged) */
-#define LCG_NEWTON_FAILED 3 /* a Newton iteration did not converge (an implicit step's, or the projection onto the constraints) */
+#define LCG_NEWTON_FAILED 3 /* a Newton iteration did not converge (an implicit step's, symplectic Euler's velocity iteration, or the projection onto the constraints) */
 #define LCG_UNKNOWN_METHOD 4 /* the method is not compiled into this kernel */
 #define LCG_SINGULAR_CONSTRAINTS 5 /* the constraint Jacobian lost rank (redundant constraints, a singular configuration, or a step that crossed one or neared it faster than the step resolves) */
 #define LCG_NONFINITE_INPUT 6 /* an input value is NaN or infinite */

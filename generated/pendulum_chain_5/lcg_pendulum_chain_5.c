@@ -1248,6 +1248,7 @@ static int lcg_pendulum_chain_5_symplectic_euler_step(double t, double *x, const
     double *G = v + 5;
     double *b = G + 5;
     double *xs = b + 5;
+    double previous = 0.0;
     int i, k, iteration;
     lcg_pendulum_chain_5_momentum(t, x, p, factor, G);
     for (i = 0; i < 5; ++i) {
@@ -1259,7 +1260,7 @@ static int lcg_pendulum_chain_5_symplectic_euler_step(double t, double *x, const
     for (i = 0; i < 5; ++i) gauge[i] = factor[i * 5 + i] * factor[i * 5 + i];  /* Cholesky: D_i = L_ii^2 */
     for (i = 0; i < 5; ++i) v[i] = x[5 + i];
     for (i = 0; i < 5; ++i) xs[i] = x[i];
-    for (iteration = 0; iteration < 30; ++iteration) {
+    for (iteration = 0; iteration < 300; ++iteration) {
         double size = 0.0;
         for (i = 0; i < 5; ++i) xs[5 + i] = v[i];
         lcg_pendulum_chain_5_momentum(t, xs, p, spare, G);
@@ -1274,8 +1275,11 @@ static int lcg_pendulum_chain_5_symplectic_euler_step(double t, double *x, const
          * failure (found by review: a stiff spring's overflow was reported as one) */
         if (!isfinite(size)) return iteration == 0 ? LCG_NONFINITE_STATE : LCG_NEWTON_FAILED;
         if (size <= 1e-13) break;
+        /* past the Newton budget, go on only while each sweep contracts: h |d ud/du| < 1 */
+        if (iteration >= 30 && !(size <= 0.95 * previous)) return LCG_NEWTON_FAILED;
+        previous = size;
     }
-    if (iteration == 30) return LCG_NEWTON_FAILED;
+    if (iteration == 300) return LCG_NEWTON_FAILED;
     for (i = 0; i < 5; ++i) {  /* spare holds M(q) from the last iteration: p+ = M(q) v */
         double acc = 0.0;
         for (k = 0; k < 5; ++k) acc += spare[i * 5 + k] * v[k];

@@ -30,8 +30,8 @@ STATUS_TABLE = (
                                           "changed its pivots more than 100-fold (a singular configuration "
                                           "crossed, or a step too coarse for the monitor: a smaller h tells)"),
     StatusCode("NONFINITE_STATE", 2, "the state or its derivatives became NaN or infinite (the run diverged)"),
-    StatusCode("NEWTON_FAILED", 3, "a Newton iteration did not converge (an implicit step's, or the "
-                                   "projection onto the constraints)"),
+    StatusCode("NEWTON_FAILED", 3, "a Newton iteration did not converge (an implicit step's, symplectic "
+                                   "Euler's velocity iteration, or the projection onto the constraints)"),
     StatusCode("UNKNOWN_METHOD", 4, "the method is not compiled into this kernel"),
     StatusCode("SINGULAR_CONSTRAINTS", 5, "the constraint Jacobian lost rank (redundant constraints, a "
                                           "singular configuration, or a step that crossed one or neared it "

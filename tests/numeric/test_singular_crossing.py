@@ -78,7 +78,10 @@ def test_quadratic_mass_never_crosses_x0_with_status_ok(quadratic_mass, method):
     run = quiet_simulate(quadratic_mass, [1.0, 0.0], 1.5, h, method)
     if method not in EXPLICIT:
         assert run.status == Status.NEWTON_FAILED
-        assert run.failed_time <= 1.0 + h
+        # never across: every accepted state keeps x > 0; symplectic Euler, first order, lags the
+        # exact solution as Euler does, and its velocity sweeps (which go on while they contract)
+        # fail at 1.002
+        assert np.all(run["x"] > 0) and run.failed_time <= 1.0 + 3 * h
         return
     assert run.status == Status.SINGULAR_MASS_MATRIX, run.message
     # Euler lags the exact solution near x = 0 (x' unbounded there): its crossing is at 1.0045

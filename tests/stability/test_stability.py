@@ -432,3 +432,66 @@ def test_failures_are_named_by_what_failed(tmp_path):
     for method in ("backward_euler", "implicit_midpoint", "radau_iia3"):
         run = simulate(degenerate, [0.0, 0.5, 2.0, 0.3], t_end=3.0, h=3.0, method=method, check_stability=False)
         assert run.status == Status.NEWTON_FAILED, (method, run.message)
+
+
+def test_a_growing_mode_an_implicit_step_would_damp_is_warned(tmp_path):
+    """Found by review: q'' = (K/m) q with K/m = 1e6 grows like cosh(1000 t) (by hand), but at h = 0.01
+    (h lambda = 10) backward Euler multiplies the mode by R(10) = 1/(1 - 10) = -0.11 per step, and the
+    run decayed to 1.6e-16 with status OK and no warning; implicit midpoint's R(10) = (1 + 5)/(1 - 5),
+    |R| = 1.5 against e^10. Now each warns. At h = 1e-4 (h lambda = 0.1) no method warns: the
+    growth is resolved (backward Euler 1/0.9 = 1.11 against e^0.1 = 1.105)."""
+    import sympy as sp
+    import sympy.physics.mechanics as me
+
+    from lagcodegen import Model
+    from lagcodegen.pipeline import compile_model
+    from lagcodegen.run.simulate import StabilityWarning, simulate
+
+    q = me.dynamicsymbols("q")
+    m, K = sp.symbols("m K", positive=True)
+    system = compile_model(Model("unstable", [q], [m, K], kinetic_energy=m * q.diff() ** 2 / 2,
+                                 potential_energy=-K * q ** 2 / 2, parameter_values={"m": 1.0, "K": 1e6}),
+                           methods=("backward_euler", "implicit_midpoint", "rk4"), cache_dir=tmp_path)
+    for method, factor in (("backward_euler", "0.111"), ("implicit_midpoint", "1.5")):  # |R(10)|
+        with pytest.warns(StabilityWarning, match=rf"growing mode lambda = 1000\+0j .* h\*Re\(lambda\) = 10, "
+                                                  rf"{method} changes it by a factor {factor} per step"):
+            simulate(system, [1e-6, 0.0], 0.1, 1e-2, method)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", StabilityWarning)
+        for method in system.layout.methods:
+            simulate(system, [1e-6, 0.0], 1e-3, 1e-4, method)
+
+
+def test_symplectic_euler_converges_on_damping_it_can_and_warns_where_it_cannot(tmp_path):
+    """Found by review: a critically damped oscillator (m = 1, k = 625, c = 50) stopped with
+    NEWTON_FAILED at step 1 for h = 8e-3 (h c/m = 0.4): the velocity solve's sweeps contract by
+    h c/m, and 30 sweeps were not enough for 1e-13. Now they go on while contracting. Expected, by
+    hand, the scheme itself on this linear model: m v+ = m v + h (-k q - c v+), i.e.
+    v+ = (v - h k q)/(1 + h c), then q+ = q + h v+. At h c/m = 0.9 the pre-check warns before the
+    step fails."""
+    import sympy as sp
+    import sympy.physics.mechanics as me
+
+    from lagcodegen import Model
+    from lagcodegen.pipeline import compile_model
+    from lagcodegen.run.simulate import StabilityWarning, Status, simulate
+
+    x = me.dynamicsymbols("x")
+    m, k, c = sp.symbols("m k c", positive=True)
+    system = compile_model(Model("damped", [x], [m, k, c], kinetic_energy=m * x.diff() ** 2 / 2,
+                                 potential_energy=k * x ** 2 / 2, dissipation=c * x.diff() ** 2 / 2,
+                                 parameter_values={"m": 1.0, "k": 625.0, "c": 50.0}),
+                           methods=("symplectic_euler",), cache_dir=tmp_path)
+    for h in (8e-3, 0.015):
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", StabilityWarning)
+            run = simulate(system, [1.0, 0.0], 0.24, h, "symplectic_euler")
+        q, v = 1.0, 0.0
+        for _ in range(round(0.24 / h)):
+            v = (v - h * 625.0 * q) / (1 + h * 50.0)
+            q = q + h * v
+        assert run.status is Status.OK
+        np.testing.assert_allclose(run.x[-1], [q, v], rtol=1e-9, atol=1e-12)
+    with pytest.warns(StabilityWarning, match=r"velocity iteration contracts by h\*\|d ud/du\| = 0.9"):
+        run = simulate(system, [1.0, 0.0], 0.252, 0.018, "symplectic_euler")
+    assert run.status is Status.NEWTON_FAILED

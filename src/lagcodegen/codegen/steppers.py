@@ -19,6 +19,14 @@ NEWTON_TOLERANCE = {"double": 1e-13, "float": 1e-5}
 NEWTON_STALL = 0.9
 NEWTON_FLOOR = {"double": 1e-9, "float": NEWTON_TOLERANCE["float"]}
 NEWTON_MAX_ITERATIONS = 30
+#: symplectic Euler's velocity solve is a fixed-point iteration v <- M^-1 (p + h G(q, v)), contracting
+#: by about h |d ud/du| per sweep: it may take this many sweeps while each shrinks the change below
+#: SWEEP_CONTRACTION of the previous one (found by review: damping with h c/m = 0.4 needs 33 sweeps,
+#: and 30 failed it at step 1)
+SWEEP_MAX_ITERATIONS = 300
+SWEEP_CONTRACTION = 0.95
+#: the contraction h |d ud/du| from which the drivers' pre-check warns: 0.8^140 is 1e-14, near the budget
+SWEEP_WARN = 0.8
 #: ... and a stalled iteration is accepted only when the stage equations' residual is within this
 #: many units of rounding of the terms of f at the stages (h sum |a_ij| sum |J_ml| |X_jl| + |W_im|)
 NEWTON_NOISE = {"double": 1e3 * 2.0 ** -52, "float": 1e3 * 2.0 ** -23}
@@ -69,6 +77,7 @@ def stepper_context(system, names, real: str, methods: list) -> dict:
                "identity_kinematics": system.kinematics_identity, "zero": _literal(0, real),
                "one": _literal(1, real), "fsuffix": "f" if real == "float" else "",
                "newton_tolerance": _literal(NEWTON_TOLERANCE[real], real), "newton_max": NEWTON_MAX_ITERATIONS,
+               "sweep_max": SWEEP_MAX_ITERATIONS, "sweep_contraction": _literal(SWEEP_CONTRACTION, real),
                "newton_stall": _literal(NEWTON_STALL, real), "newton_floor": _literal(NEWTON_FLOOR[real], real),
                "newton_noise": _literal(NEWTON_NOISE[real], real),
                "n_state_squared": N * N, "n_squared": n * n, "se_work": 3 * n * n + 5 * n + N,

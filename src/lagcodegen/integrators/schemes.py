@@ -5,7 +5,8 @@ explicit stepper, implicit ones the generic simplified-Newton stepper with the a
 Jacobian. The one non-RK scheme is symplectic (semi-implicit) Euler in momentum form,
 p = M(q) u: ``M(q) v = p + h G(q, v)``, ``q+ = q + h v``, ``p+ = M(q) v`` with G = dL/dq + Q
 (Hairer-Lubich-Wanner, Geometric Numerical Integration, Thm. VI.3.3): symplectic for any M(q);
-for constant M it reduces to ``u+ = u + h ud(q, u)``, ``q+ = q + h u+``. It needs
+for constant M it reduces to ``u+ = u + h ud(q, u+)`` (the speeds at the step's end: a damping force
+makes it implicit in u+, solved by sweeps that contract by h |d ud/du|), ``q+ = q + h u+``. It needs
 T = 1/2 u^T M(q) u (`codegen.outputs.momentum_obstacle` says when a model does not qualify).
 """
 from __future__ import annotations
@@ -63,7 +64,7 @@ class SymplecticEuler:
     stepper: str = KIND_SYMPLECTIC_EULER
     outputs: tuple = ("rhs", "momentum")  # rhs for the stability pre-check and the first sample
     lane_capable: bool = False
-    implicit: bool = False  # its momentum solve is linear in v for quadratic T: no Newton
+    implicit: bool = False  # no Newton: fixed-point sweeps on v (contracting by h |d ud/du|)
 
     def imag_stability_limit(self) -> float:
         return 2.0
