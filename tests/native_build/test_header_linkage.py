@@ -86,3 +86,20 @@ int main() {{
     lines = _run([exe]).split("\n")
     np.testing.assert_allclose([float(v) for v in lines[0].split()], _one_step(upper), rtol=1e-15, atol=1e-15)
     np.testing.assert_allclose([float(v) for v in lines[1].split()], _one_step(lower), rtol=1e-15, atol=1e-15)
+
+
+def test_names_mangling_merges_get_prefixes_of_their_own(tmp_path, require_tool):
+    """Found by review: "arm-left", "arm left" and "arm_left" all became lcg_arm_left (one include guard,
+    one file name: emitting both overwrote the first, linking both failed), as did "for" and "for_".
+    A name mangling changed now gets 8 hex digits of its sha256; a plain one keeps its prefix. All
+    four link into one program."""
+    gcc = require_tool("gcc")
+    names = ("arm-left", "arm left", "arm_left", "for", "for_")
+    sources = [_emit(_pendulum(name, 1.0), tmp_path) for name in names]
+    prefixes = [s.layout.prefix for s in sources]
+    assert len(set(prefixes)) == len(names) and len({s.header_name for s in sources}) == len(names)
+    assert prefixes[2] == "lcg_arm_left" and prefixes[4] == "lcg_for_"
+    main = tmp_path / "main.c"
+    main.write_text("".join(f'#include "{s.header_name}"\n' for s in sources) + "int main(void) { return 0; }\n")
+    _run([gcc, "-std=c99", "-Wall", "-Werror", "-I", tmp_path, main,
+          *(tmp_path / s.source_name for s in sources), "-o", tmp_path / "all", "-lm"])

@@ -85,9 +85,10 @@ def names_for(system: ReducedSystem, model_name: str) -> Names:
         symbols[s] = mangle(s.name, taken)
     symbols[system.t] = "t"
     body = mangle(model_name)
-    if body != body.lower():  # found by review: the macros (LCG_PENDULUM_H) and, on some file systems, the
-        # file names fold case, so "Pendulum" and "pendulum" clashed in one firmware: a name with capitals
-        # gets 8 hex digits of its sha256
+    if body != body.lower() or body != model_name:  # found by review: the macros (LCG_PENDULUM_H) and, on
+        # some file systems, the file names fold case, so "Pendulum" and "pendulum" clashed in one firmware,
+        # and mangling made "arm-left" and "arm_left" (or "for" and "for_") one prefix: a name with capitals,
+        # or one mangling changed, gets 8 hex digits of its sha256
         body = f"{body}_{hashlib.sha256(model_name.encode()).hexdigest()[:8]}"
     prefix = "lcg_" + body
     state = {s: i for i, s in enumerate(system.q + system.u)}
