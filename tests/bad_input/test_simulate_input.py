@@ -140,6 +140,9 @@ def test_the_suggested_stride_fits(pendulum):
         run(pendulum, t_end=1.0, h=1e-3, max_output_bytes=1000)
     stride = int(re.search(r"stride >= (\d+)", str(info.value)).group(1))
     assert stride == 41
+    # and the least stride >= 41 that divides the 1000 steps, 50 (found by review: 41 warned that the
+    # samples end before the final state)
+    assert "(50, the least such that divides the 1000 steps, keeps the final state)" in str(info.value)
     traj = run(pendulum, t_end=1.0, h=1e-3, stride=stride, max_output_bytes=1000)
     assert traj.ok and traj.x.nbytes + traj.t.nbytes <= 1000
     with pytest.raises(OutputTooLargeError):

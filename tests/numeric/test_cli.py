@@ -551,3 +551,17 @@ def test_emit_writes_both_files_or_neither(tmp_path, capsys):
     (out / "lcg_double_pendulum.c").rmdir()
     code, _ = run_cli(["emit", "double_pendulum", "--out", out], capsys)
     assert code == 0 and sorted(p.name for p in out.iterdir()) == ["lcg_double_pendulum.c", "lcg_double_pendulum.h"]
+
+
+def test_param_and_params_are_one_option(capsys):
+    """Found by review: simulate took --param and linearize --params, and each refused the other's
+    spelling ("unrecognized arguments"). Both take both, with the same effect (the linearization at
+    m2 = 2 differs from the default m2's)."""
+    base = ["double_pendulum", "--x0", "q1=1,q2=0", "--t-end", "0.01", "--h", "1e-3"]
+    assert main(["simulate", *base, "--params", "m2=2"]) == 0
+    capsys.readouterr()
+    printed = {}
+    for option in ("--param", "--params", None):
+        assert main(["linearize", "double_pendulum", *([option, "m2=2"] if option else [])]) == 0
+        printed[option] = capsys.readouterr().out
+    assert printed["--param"] == printed["--params"] != printed[None]

@@ -359,7 +359,7 @@ def add_run_arguments(parser, default_h: float | None = None) -> None:
     parser.add_argument("--x0", action="append", metavar="NAME=VALUE",
                         help="initial state, e.g. --x0 q1=1,q2=0.5; every coordinate needs a value "
                              "(speeds default to 0)")
-    parser.add_argument("--param", action="append", metavar="NAME=VALUE",
+    parser.add_argument("--param", "--params", dest="param", action="append", metavar="NAME=VALUE",
                         help="value of a free parameter (repeatable or comma-separated; "
                              "others keep the model's defaults)")
     parser.add_argument("--fixed", action="append", metavar="NAME=VALUE",

@@ -269,7 +269,7 @@ def make_parser() -> Parser:
     linear.add_argument("--at", action="append", metavar="STATE=VALUE",
                         help="the operating state (coordinates and speeds; unnamed ones are 0)")
     linear.add_argument("--inputs", action="append", metavar="INPUT=VALUE", help="the inputs there (default 0)")
-    linear.add_argument("--params", action="append", metavar="NAME=VALUE",
+    linear.add_argument("--params", "--param", dest="params", action="append", metavar="NAME=VALUE",
                         help="parameter values (default: the model's)")
     linear.set_defaults(run=cmd_linearize)
     emit = commands.add_parser("emit", help="write the standalone C header and source of a model")

@@ -49,7 +49,7 @@ def add_fmu_command(commands) -> None:
                      help="start value of the step_size parameter, the Co-Simulation fixed step (default: 1e-3)")
     fmu.add_argument("--x0", action="append", metavar="NAME=VALUE",
                      help="start values of the states (unnamed ones: 0)")
-    fmu.add_argument("--param", action="append", metavar="NAME=VALUE",
+    fmu.add_argument("--param", "--params", dest="param", action="append", metavar="NAME=VALUE",
                      help="start values of free parameters (default: the model's)")
     fmu.add_argument("--fixed", action="append", metavar="NAME=VALUE",
                      help="fold a parameter into the C code as a constant (repeatable or comma-separated)")

@@ -198,7 +198,15 @@ def check_output_size(nbytes: int, n_steps: int, stride: int, what: str, limit: 
             middle = (low + high) // 2
             low, high = (low, middle) if size_of(middle) <= bound else (middle, high)
         smallest = high
-    hint = f"keep fewer samples with stride >= {smallest}" if smallest is not None else "run fewer members"
+    hint = "run fewer members"
+    if smallest is not None:
+        # the least that also divides the steps (found by review: the suggestion then warned that the
+        # samples end before the final state)
+        bound_search = min(n_steps, 2 * smallest, smallest + 10 ** 6)  # a bounded search: n_steps can be 1e12
+        dividing = next((d for d in range(smallest, bound_search + 1) if n_steps % d == 0), None)
+        hint = f"keep fewer samples with stride >= {smallest}" + (
+            f" ({dividing}, the least such that divides the {n_steps} steps, keeps the final state)"
+            if dividing is not None and dividing != smallest else "")
     check_memory(nbytes, f"{what} would keep {samples} samples", hint, limit)
 
 
