@@ -492,10 +492,9 @@ class Model:
             except ValueError as error:
                 raise ModelError(f"{what} is not oriented relative to the inertial frame {self.frame}: "
                                  f"orient it with {frame}.orient_axis(...) ({error})") from None
-        try:
-            moving = self.origin.vel(self.frame)
-        except ValueError:  # no velocity set: fixed, as the route takes it
-            moving = 0
+        # the velocity set on the origin itself, not one sympy's Point.vel infers from another point's
+        # (found by review: Kane-style speeds set on P1 made a fixed O "move" by l (u1 - q1'))
+        moving = getattr(self.origin, "_vel_dict", {}).get(self.frame, 0)
         if moving != 0 and any(sp.simplify(e) != 0 for e in _vector_entries(moving)):
             # found by review: a shaking table's velocity was dropped, the equations those of a fixed one
             raise ModelError(f"origin {self.origin.name} moves in frame {self.frame} (velocity {moving}): the origin "

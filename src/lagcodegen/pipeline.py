@@ -43,7 +43,7 @@ from .model import ROUTE_TREE, Model, sign_assumption, sign_error
 from .native import cache
 from .native.build import CompiledSystem, build_module
 from .native.build_cost import estimate_build_cost
-from .symbolic.derive import EquationsOfMotion, derive_equations
+from .symbolic.derive import EquationsOfMotion, check_derived, derive_equations
 from .symbolic.trees import derive_from_tree
 
 SIMULATION_OUTPUTS = ("rhs", "energy", "points", "jacobian", "measurements", "reactions", "configuration")
@@ -153,7 +153,9 @@ def _derive(model: Model, methods, outputs) -> EquationsOfMotion:
     if model.route != ROUTE_TREE:
         return derive_equations(model)
     implicit = "jacobian" in required_outputs(tuple(methods)) or "jacobian" in (outputs or ())
-    return derive_from_tree(model, implicit=implicit)
+    eom = derive_from_tree(model, implicit=implicit)
+    check_derived(model, eom)  # as derive_equations does (found by review: a tree skipped it)
+    return eom
 
 
 def _function_ops(system) -> dict:

@@ -360,6 +360,13 @@ def test_a_jump_in_a_piecewise_energy_is_named():
     assert derive_equations(oscillator(potential_energy=sp.Piecewise((V_x, k > 1), (2 * V_x, True)))).forcing[0] != 0
     with raises_naming("generalized force along x_d", "Derivative(floor(x), x)"):
         derive_equations(oscillator(potential_energy=V_x + sp.floor(x)))
+    # found by review: conditions nonlinear in the coordinate (a box |x| < 1, x^2 < 1) were not looked
+    # at, and a jump far out (x = 1e6, beside k x^2/2) hid in the slope over a 1e-7 relative step
+    for condition, where in ((sp.Abs(x) < 1, "x = -1"), (x ** 2 < 1, "x = -1"), (x < 10 ** 6, "x = 1000000")):
+        with raises_naming("potential energy jumps by", where):
+            derive_equations(oscillator(potential_energy=V_x + sp.Piecewise((0, condition), (3, True))))
+    smooth = sp.Piecewise((k * (x ** 2 - 1) ** 2, x ** 2 > 1), (0, True))  # meets at x = +-1
+    assert derive_equations(oscillator(potential_energy=smooth)).forcing[0] != 0
 
 
 def test_a_value_beyond_the_double_range_or_complex_is_named():
@@ -428,6 +435,14 @@ def test_the_bodies_route_refuses_what_it_would_drop():
     O.set_vel(N, c * sp.sin(t) * N.x)
     with raises_naming("origin O moves in frame N", "must be fixed"):
         Model("table", [x], [m, c], bodies=[ball], frame=N, origin=O)
+    # a velocity sympy infers for O from another point's (Kane-style speeds set on P) is no motion of
+    # O (found by review: the first version of this check refused such a model as "O moves")
+    N, O, u = me.ReferenceFrame("N"), me.Point("O"), me.dynamicsymbols("u")
+    P = O.locatenew("P", x * N.x)
+    P.set_vel(N, u * N.x)  # O has no velocity of its own: O.vel(N) is inferred as (u - x') N.x
+    ball = me.Particle("ball", P, m)
+    assert derive_equations(Model("kane_style", [x], [m, k], bodies=[ball], frame=N, origin=O,
+                                  potential_energy=k * x ** 2 / 2)).mass_matrix[0] == m
     N, O, P, ball = _particle_on_a_line()
     Q = O.locatenew("Q", (x + c * xd) * N.x)
     with raises_naming("the position of the load's point Q contains the speed"):

@@ -562,3 +562,18 @@ def test_a_tree_without_mass_is_named_in_the_closed_form():
              Link("b", "a", "revolute", (0, 0, 1), q2, offset=(0, -1, 0), center=(0, -1, 0))]
     with pytest.raises(ModelError, match="no link of its tree has a mass or an inertia"):
         derive_equations(Model("massless", [q1, q2], [], tree=links, gravity=(0, -9.81, 0), formulation="closed"))
+
+
+@pytest.mark.parametrize("formulation", ["closed", "recursive"])
+def test_a_jump_in_a_trees_potential_is_refused_where_it_is_compiled(formulation, tmp_path):
+    """Found by review: compile_model derives a tree by its own route and skipped the energy-jump
+    check derive_equations makes, and a recursive tree has no forcing to check: a wall of height 10
+    at q1 = 0.5 (energy 0.5 cannot pass it, by hand) was crossed with status OK. Now both forms refuse
+    it where they are derived and where they are compiled."""
+    q1 = me.dynamicsymbols("q1")
+    links = [Link("slider", None, "prismatic", (1, 0, 0), q1, mass=1.0)]
+    model = Model("wall", [q1], [], tree=links, formulation=formulation,
+                  potential_energy=sp.Piecewise((0, q1 < 0.5), (10, True)))
+    for derive in (derive_equations, lambda m: compile_model(m, methods=("rk4",), cache_dir=tmp_path)):
+        with pytest.raises(ModelError, match="potential energy jumps by 10 where q1 = 0.5"):
+            derive(model)

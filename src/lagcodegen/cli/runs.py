@@ -80,7 +80,7 @@ def check_steps(args, n_state: int, members: int = 1, keep: bool = True) -> int:
         steps = step_count(0.0, args.t_end, args.h)
     except ValueError as error:
         raise UsageError(f"--t-end {args.t_end:g} / --h {args.h:g}: {error}") from None
-    if getattr(args, "stride", 1) > steps:  # before the compile (found by review: refused only after it)
+    if keep and getattr(args, "stride", 1) > steps:  # before the compile (found by review: refused after it)
         raise UsageError(f"--stride {args.stride} exceeds the {steps} steps of --t-end {args.t_end:g} / --h "
                          f"{args.h:g}: only the initial state would be kept; use --stride <= {steps}")
     budget = physical_memory() * MEMORY_SHARE
