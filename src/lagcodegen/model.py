@@ -56,6 +56,13 @@ def _is_coordinate(obj: Any) -> bool:
     return isinstance(obj, AppliedUndef) and obj.args == (TIME,)
 
 
+def _check_no_speed(entries, what: str) -> None:
+    """`ModelError` when a position's ``entries`` hold a speed: positions depend on q and t only."""
+    rates = sorted({d for entry in entries for d in sp.sympify(entry).atoms(sp.Derivative)}, key=str)
+    if rates:
+        raise ModelError(f"{what} contains the speed {rates[0]}: positions depend on the coordinates and t only")
+
+
 def _function_assumptions(f) -> dict:
     """The assumptions a dynamicsymbol was declared with (real=True, ...); {} for none."""
     return dict(getattr(f.func, "_kwargs", None) or {})
@@ -522,10 +529,8 @@ class Model:
             if isinstance(body, me.RigidBody):
                 exprs += [(f"inertia of {body.name}", entry) for entry in _dyadic_entries(body.inertia[0])]
             position = _vector_entries(body.masscenter.pos_from(self.origin))
-            rates = sorted({d for entry in position for d in sp.sympify(entry).atoms(sp.Derivative)}, key=str)
-            if rates:  # found by review: its velocity then held q'' and the equations were garbage, status OK
-                raise ModelError(f"the position of body {body.name} contains the speed {rates[0]}: positions "
-                                 "depend on the coordinates and t only")
+            # found by review: its velocity then held q'' and the equations were garbage, status OK
+            _check_no_speed(position, f"the position of body {body.name}")
             exprs += [(f"position of body {body.name}", entry) for entry in position]
             if isinstance(body, me.RigidBody) and self.frame is not None:
                 # found by review: an input in it was accepted and its rate dropped from the equations
@@ -541,11 +546,8 @@ class Model:
             kind = "torque on frame" if load.is_torque else "force on point"
             exprs += [(f"{kind} {load.where.name}", entry) for entry in _vector_entries(load.vector)]
             if not load.is_torque:  # as a body's position (found by review: a speed in it was dropped)
-                where = _vector_entries(load.where.pos_from(self.origin))
-                rates = sorted({d for entry in where for d in sp.sympify(entry).atoms(sp.Derivative)}, key=str)
-                if rates:
-                    raise ModelError(f"the position of the load's point {load.where.name} contains the speed "
-                                     f"{rates[0]}: positions depend on the coordinates and t only")
+                _check_no_speed(_vector_entries(load.where.pos_from(self.origin)),
+                                f"the position of the load's point {load.where.name}")
         for name, pos in self.points.items():
             if not isinstance(pos, me.Point):
                 if not isinstance(pos, (tuple, list)) or len(pos) not in (2, 3):
