@@ -219,6 +219,10 @@ def test_a_value_of_the_sign_a_parameter_is_declared_without_is_named(pendulum, 
     with pytest.warns(ParameterSignWarning, match=r"swept 'm2' \(member 1\) = -0.5, .*declared positive .*"
                                                   r"\(2 of 3 members\)"):
         sweep(pendulum, {"m2": [1.0, -0.5, -2.0]}, x0=X0, t_end=0.1, h=0.01)
+    with pytest.warns(ParameterSignWarning) as caught:  # a bad base value: named once, as itself, not "swept"
+        sweep(pendulum, {"m2": [1.0, 2.0]}, x0=X0, t_end=0.1, h=0.01, params={"m1": -1.0})
+    signs = [str(w.message) for w in caught if issubclass(w.category, ParameterSignWarning)]
+    assert len(signs) == 1 and signs[0].startswith("parameter 'm1' = -1.0"), signs
     with warnings.catch_warnings():
         warnings.simplefilter("error", ParameterSignWarning)
         run(pendulum, params={"m2": 0.0}, check_stability=False)

@@ -181,10 +181,13 @@ class ParameterSignWarning(UserWarning):
     negative mass fails alone), and this names the parameter where the failure would not."""
 
 
-def check_signs(layout, ps: np.ndarray, what) -> None:
+def check_signs(layout, ps: np.ndarray, what, names=None) -> None:
     """A `ParameterSignWarning` for the first value (rows of ``ps``: members) of the sign a free
-    parameter's assumption excludes, with how many rows have one; ``what(name, member)`` names it."""
+    parameter's assumption excludes, with how many rows have one; ``what(name, member)`` names it.
+    ``names``: only these parameters (a sweep's swept ones: the others were checked as the base)."""
     for name, assumption in layout.signs:
+        if names is not None and name not in names:
+            continue
         column = ps[:, layout.parameters.index(name)]
         wrong = np.flatnonzero(~SIGN_ASSUMPTIONS[assumption](column))
         if wrong.size:

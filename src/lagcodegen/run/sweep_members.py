@@ -121,7 +121,7 @@ def member_arrays(system: CompiledSystem, columns, values, x0, params):
                 raise ValueError(f"swept {name!r} = {float(values[beyond[0], j])!r} (member {beyond[0]}) is beyond the "
                                  f"range of the {layout.precision} kernel")
     if layout.parameters:
-        check_signs(layout, ps, lambda name, member: f"swept {name!r} (member {member})")
+        check_signs(layout, ps, lambda name, member: f"swept {name!r} (member {member})", names=set(columns))
     return np.ascontiguousarray(xs, dtype=dtype), np.ascontiguousarray(ps, dtype=dtype)
 
 
