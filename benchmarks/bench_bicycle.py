@@ -6,10 +6,12 @@ In one fresh worker: sympy forms the KanesMethod (the test function is run until
 ``kanes_equations`` returns; not timed for either side). Then, each from that object:
 
 - lagcodegen's cold pipeline: ``Model(sympy_model=...)`` and ``compile_model`` (the RK4 driver
-  and the rhs, an empty cache directory), dependent speeds eliminated (the default);
+  and the rhs, an empty cache directory), dependent speeds eliminated (the default), built for
+  this machine's vector instruction set (-mavx2 where the CPU has AVX2; `instruction_set`);
 - PyDy's ``generate_ode_function(forcing, q, u, constants, mass_matrix=mass_matrix,
   coordinate_derivatives=<kindiffdict>, generator="cython")`` (its code generation and Cython
-  compile; Kane's M and F of every speed, the dependent ones' rows from the constraints);
+  compile, with the same instruction-set flag in $CFLAGS; Kane's M and F of every speed, the
+  dependent ones' rows from the constraints);
 - ns per RK4 step (h = 1e-3) from the same consistent state: ours is ``simulate``'s loop in C;
   PyDy has no integrator, so its step is the classic
   RK4 in Python around its compiled rhs (four calls and the numpy updates, what a PyDy user runs),
@@ -25,6 +27,7 @@ extra: pydy, cython).
 """
 from __future__ import annotations
 
+import os
 import sys
 import time
 from pathlib import Path
@@ -116,8 +119,12 @@ def worker_measure(quick: str, repeat: str) -> None:
         start = time.perf_counter()
         model = Model("whipple_kane", parameters=constants, sympy_model=kane)
         system = compile_model(model, methods=("rk4",), outputs=("rhs",), cache_dir=cache)
-        emit(ours_pipeline_s=time.perf_counter() - start)
+        emit(ours_pipeline_s=time.perf_counter() - start,
+             instruction_set=" ".join(system.instruction_set) or "baseline")
         progress(f"bicycle: lagcodegen pipeline {time.perf_counter() - start:.1f} s")
+        # PyDy's Cython build gets the flag of the vector instruction set ours was built with
+        # (setuptools appends $CFLAGS), so that both C codes use the same instructions
+        os.environ["CFLAGS"] = " ".join([os.environ.get("CFLAGS", ""), *system.instruction_set]).strip()
         start = time.perf_counter()
         rates = kane.kindiffdict()
         # lists, not Matrices: PyDy 0.9.4 adds coordinates + speeds for its docstring (elementwise for Matrices)
@@ -180,7 +187,8 @@ def run(options) -> dict:
     ours, pydy, floor = data.get("ours_ns"), data.get("pydy_rk4_ns"), data.get("pydy_rhs_ns")
     lines = [f"Whipple bicycle, sympy test_kane3's KanesMethod (4 q, 3 + 3 dependent u); RK4, h = 1e-3; "
              f"{peer_versions('pydy', 'cython', 'sympy')}; worker status: {data['status']}",
-             f"sympy's kanes_equations (shared, not timed for either): {data.get('sympy_s', float('nan')):.1f} s"]
+             f"sympy's kanes_equations (shared, not timed for either): {data.get('sympy_s', float('nan')):.1f} s",
+             f"both C codes built for this machine's instruction set: {data.get('instruction_set', '?')}"]
     body = [["cold pipeline [s]", f"{data.get('ours_pipeline_s', float('nan')):.2f}",
              f"{data.get('pydy_pipeline_s', float('nan')):.2f}", ""]]
     if ours and pydy:

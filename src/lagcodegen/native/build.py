@@ -45,6 +45,7 @@ from .compiler import (
     start_kernel_compile,
     stop,
 )
+from .instruction_set import host_flags, missing_features
 
 __all__ = ["BuildError", "CompiledSystem", "build_module", "compiler_available", "DEFAULT_FLAGS"]
 
@@ -87,6 +88,8 @@ class CompiledSystem:
     #: estimate made before (``build_cost.estimate_build_cost``; None when not given)
     build_seconds: float | None = field(default=None, repr=False, compare=False)
     cost: BuildCost | None = field(default=None, repr=False, compare=False)
+    #: the flags of the building machine's vector instruction set (`instruction_set.host_flags`)
+    instruction_set: tuple = field(default=(), repr=False, compare=False)
 
     def report(self) -> str:
         """What was built and how: the formulation (trees: which one and the operation estimate
@@ -98,6 +101,8 @@ class CompiledSystem:
             lines.append(f"formulation: {layout.formulation}")
         if self.sources is not None:
             lines.append(f"C source: {len(self.sources.source)} bytes ({self.sources.source_name})")
+        lines.append(f"built for this machine's {' '.join(self.instruction_set)}" if self.instruction_set
+                     else "built for the baseline instruction set")
         if self.cost is not None:
             ops = sum(count for _, count in self.cost.ops)
             lines.append(f"estimated build: {self.cost.seconds:.1f} s, {self.cost.megabytes:.0f} MB of compiler "
@@ -107,7 +112,8 @@ class CompiledSystem:
         return "\n".join(lines)
 
     def __reduce__(self):
-        return (_restore, (self.key, str(self.path), self.module_name, self.layout, self.sources, self.lane_build))
+        return (_restore, (self.key, str(self.path), self.module_name, self.layout, self.sources, self.lane_build,
+                           self.instruction_set))
 
     def lane_variant(self) -> CompiledSystem | None:
         """The same model built with the lane sweep kernel (compiled once, then cached), or None."""
@@ -118,9 +124,15 @@ class CompiledSystem:
 
 
 def _restore(key: str, path: str, module_name: str, layout: KernelLayout,
-             sources: CSources | None = None, lane_build: tuple | None = None) -> CompiledSystem:
+             sources: CSources | None = None, lane_build: tuple | None = None,
+             instruction_set: tuple = ()) -> CompiledSystem:
     so = Path(path)
     problem = None if path in _LOADED else cache.entry_problem(so.parent, key, so.name)
+    lacking = missing_features(instruction_set)
+    if lacking and problem is None:
+        # a worker whose CPU lacks what the module was built for (a shared cache on a mixed cluster):
+        # opening it would end the process on an illegal instruction
+        problem = f"built for {' '.join(instruction_set)}, and this CPU has no {', '.join(lacking)}"
     if problem is not None:
         # another machine (a Dask worker), or a damaged entry: build again (with the default
         # flags: the pickle does not carry extra ones) or say why not
@@ -129,7 +141,8 @@ def _restore(key: str, path: str, module_name: str, layout: KernelLayout,
         state = "no longer exists" if problem == "missing" else f"cannot be loaded (entry: {problem})"
         raise BuildError(f"compiled module {path} of model {layout.model!r} {state}; call build_module again")
     module = _import(path, module_name)
-    return CompiledSystem(module.ffi, module.lib, key, so, module_name, layout, sources, lane_build)
+    return CompiledSystem(module.ffi, module.lib, key, so, module_name, layout, sources, lane_build,
+                          instruction_set=instruction_set)
 
 
 def _import(path: str, module_name: str) -> types.ModuleType:
@@ -237,8 +250,10 @@ def build_module(sources: CSources, *, cache_dir=None, extra_compile_args=(), co
     cache_dir : path, optional
         Overrides ``$LAGCODEGEN_CACHE_DIR`` and the user cache dir.
     extra_compile_args : sequence of str
-        Appended to :data:`DEFAULT_FLAGS`, then :data:`IEEE_FLAGS` (so -ffast-math keeps the
-        non-finite checks); part of the key.
+        Appended to :data:`DEFAULT_FLAGS` and the flag of this machine's vector instruction set
+        (``instruction_set.host_flags``: -mavx2 where the CPU has AVX2; none with
+        ``LAGCODEGEN_PORTABLE=1``), then :data:`IEEE_FLAGS` (so -ffast-math keeps the non-finite
+        checks); all part of the key.
     compiler : str, optional
         Compiler command (default ``$CC``, else Python's configured compiler); part of the key.
     cost : BuildCost, optional
@@ -254,8 +269,9 @@ def build_module(sources: CSources, *, cache_dir=None, extra_compile_args=(), co
         ``cache_dir`` was given and cannot be used. Without it, an unusable cache dir gives way
         to a temporary one, with a ``cache.CacheDirWarning``.
     """
-    flags = (*DEFAULT_FLAGS, *extra_compile_args, *IEEE_FLAGS)
     command = tuple(_compiler_command(compiler))
+    instruction_set = host_flags(command)
+    flags = (*DEFAULT_FLAGS, *instruction_set, *extra_compile_args, *IEEE_FLAGS)
     key = _key(sources, list(flags), _compiler_identity(command))
     # bounded: the module name is also a file name and a C identifier (PyInit_<name>)
     module_name = f"_lcg_{mangle(sources.layout.model, max_len=40)}_{key[:16]}"
@@ -274,7 +290,7 @@ def build_module(sources: CSources, *, cache_dir=None, extra_compile_args=(), co
                     _MEMO[str(root), key] = _fetch(job, root)
         ffi, lib, so_path, seconds = _MEMO[str(root), key]
     return CompiledSystem(ffi, lib, key, so_path, module_name, sources.layout, sources,
-                          build_seconds=seconds, cost=cost)
+                          build_seconds=seconds, cost=cost, instruction_set=instruction_set)
 
 
 def _fallback(root: Path, exc: OSError, explicit, module_name: str) -> Path:
