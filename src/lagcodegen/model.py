@@ -646,6 +646,7 @@ class Model:
 
 _UNDEFINED_ATOMS = ((sp.nan, "nan"), (sp.zoo, "complex infinity (zoo)"), (sp.oo, "infinity (oo)"),
                     (sp.S.NegativeInfinity, "-infinity (-oo)"), (sp.I, "the imaginary unit I"))
+_UNDEFINED_LABELS = dict(_UNDEFINED_ATOMS)
 
 
 def input_name(r: Any) -> str:
@@ -661,20 +662,32 @@ def check_well_defined(what: str, expr: sp.Basic) -> None:
     for atom, label in _UNDEFINED_ATOMS:
         if expr == atom:
             raise ModelError(f"{what} is {label} (a nan or infinite value folds the whole expression)")
-        if expr.has(atom):
+    # one walk over the tree (a sympy model's forcing is large, and each has() or atoms() is a walk)
+    undefined, accelerations, powers, functions = set(), set(), set(), set()
+    for node in sp.preorder_traversal(expr):
+        if node in _UNDEFINED_LABELS:
+            undefined.add(node)
+        elif isinstance(node, sp.Derivative):
+            if node.derivative_count > 1:
+                accelerations.add(node)
+        elif isinstance(node, sp.Pow):
+            powers.add(node)
+        elif isinstance(node, sp.Function):
+            functions.add(node)
+    for atom, label in _UNDEFINED_ATOMS:
+        if atom in undefined:
             raise ModelError(f"{what} contains {label}: {expr}")
-    accelerations = sorted((d for d in expr.atoms(sp.Derivative) if d.derivative_count > 1), key=str)
     if accelerations:
-        raise ModelError(f"{what} contains the acceleration {accelerations[0]}: energies, forces and "
-                         "positions may depend on coordinates, speeds and t only")
+        raise ModelError(f"{what} contains the acceleration {sorted(accelerations, key=str)[0]}: energies, "
+                         "forces and positions may depend on coordinates, speeds and t only")
     # a constant that is complex without an I atom (found by review: (-1)**(1/3) is 0.5 + 0.866 I in
     # sympy, printed as cbrt(-1) = -1 in C, so the kernel ran a different model with status OK)
-    for power in expr.atoms(sp.Pow):
+    for power in powers:
         if power.is_number and power.is_extended_real is False:
             raise ModelError(f"{what} contains the complex constant {power} = {sp.N(power, 6)}: sympy takes the "
                              "principal root of a negative number; write the real value (e.g. -1 for (-1)**(1/3))")
     # and a function outside its real domain (found by review: k asin(2) x^2 ran to "diverged")
-    for function in expr.atoms(sp.Function):
+    for function in functions:
         if function.is_number and function.is_extended_real is False:
             raise ModelError(f"{what} contains the complex constant {function} = {sp.N(function, 6)}: its "
                              "argument is outside the function's real domain")
