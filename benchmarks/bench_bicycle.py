@@ -17,7 +17,9 @@ In one fresh worker: sympy forms the KanesMethod (the test function is run until
   RK4 in Python around its compiled rhs (four calls and the numpy updates, what a PyDy user runs),
   and also reported: four bare calls of its rhs, the floor of any Python stepping loop. Each
   contender's time is its best of ``--bicycle-repeat`` runs (default 7), the three runs taken in
-  turn, so that the bests come from the same spells of the shared machine.
+  turn, so that the bests come from the same spells of the shared machine;
+- the cold pipelines again in ``--bicycle-pipelines`` - 1 more fresh processes (default 2 more,
+  PyDy's first every other time): each side's best of them all.
 
 Goals (issue 14): RK4 step >= 50x faster than PyDy's; our cold pipeline faster than PyDy's
 generate + compile.
@@ -90,50 +92,91 @@ def upright_state(kane, system, values: dict):
 
 def add_arguments(group) -> None:
     group.add_argument("--bicycle-repeat", type=int, default=7, metavar="R", help="best of R runs (default 7)")
+    group.add_argument("--bicycle-pipelines", type=int, default=3, metavar="P",
+                       help="cold pipelines: best of P fresh processes (default 3)")
+
+
+def ours_pipeline(kane, constants, cache: str):
+    """lagcodegen's cold pipeline from the KanesMethod: (CompiledSystem, seconds)."""
+    from lagcodegen import Model
+    from lagcodegen.pipeline import compile_model
+
+    start = time.perf_counter()
+    model = Model("whipple_kane", parameters=constants, sympy_model=kane)
+    system = compile_model(model, methods=("rk4",), outputs=("rhs",), cache_dir=cache)
+    return system, time.perf_counter() - start
+
+
+def pydy_pipeline(kane, constants, instruction_set):
+    """PyDy's generate + Cython compile of the same KanesMethod: (rhs, seconds). Its build gets the
+    flag of the vector instruction set ours was built with (setuptools appends $CFLAGS), so that
+    both C codes use the same instructions."""
+    import sympy as sp
+    from pydy.codegen.ode_function_generators import generate_ode_function
+
+    os.environ["CFLAGS"] = " ".join([os.environ.get("CFLAGS", ""), *instruction_set]).strip()
+    start = time.perf_counter()
+    rates = kane.kindiffdict()
+    # lists, not Matrices: PyDy 0.9.4 adds coordinates + speeds for its docstring (elementwise for Matrices)
+    rhs = generate_ode_function(kane.forcing, list(kane.q), list(kane.u), constants,
+                                mass_matrix=kane.mass_matrix,
+                                coordinate_derivatives=sp.Matrix([rates[c.diff()] for c in kane.q]),
+                                generator="cython", constants_arg_type="array")
+    return rhs, time.perf_counter() - start
+
+
+def kane_and_constants():
+    """The KanesMethod (formed, not timed) and its constants in a fixed order."""
+    import sympy as sp
+
+    kane = bicycle_kane()
+    t = sp.Symbol("t")
+    return kane, sorted((kane.mass_matrix_full.free_symbols | kane.forcing_full.free_symbols) - {t}, key=str)
+
+
+def worker_pipelines(order: str) -> None:
+    """One more sample of both cold pipelines in a fresh process, in the order given ("ours" or
+    "pydy" first): the machine is shared, and one sample each can land in different spells."""
+    import tempfile
+
+    kane, constants = kane_and_constants()
+    emit(formed=True)
+    with tempfile.TemporaryDirectory() as cache:
+        if order == "ours":
+            system, ours = ours_pipeline(kane, constants, cache)
+            _, pydy = pydy_pipeline(kane, constants, system.instruction_set)
+        else:
+            from lagcodegen.native.build import host_instruction_set
+
+            _, pydy = pydy_pipeline(kane, constants, host_instruction_set())
+            system, ours = ours_pipeline(kane, constants, cache)
+    emit(ours_pipeline_s=ours, pydy_pipeline_s=pydy)
 
 
 def worker_measure(quick: str, repeat: str) -> None:
     import tempfile
 
     import numpy as np
-    import sympy as sp
     from _common import best_seconds_interleaved
-    from pydy.codegen.ode_function_generators import generate_ode_function
 
-    from lagcodegen import Model
-    from lagcodegen.pipeline import compile_model
     from lagcodegen.run.simulate import dependent_speeds, parameter_vector, simulate
 
     quick, repeat = quick == "1", int(repeat)
     steps = STEPS[quick]
     start = time.perf_counter()
-    kane = bicycle_kane()
+    kane, constants = kane_and_constants()
     emit(sympy_s=time.perf_counter() - start)
     progress(f"bicycle: sympy formed the KanesMethod in {time.perf_counter() - start:.0f} s")
-    t = sp.Symbol("t")
-    constants = sorted((kane.mass_matrix_full.free_symbols | kane.forcing_full.free_symbols) - {t}, key=str)
     benchmark = benchmark_values()
     values = {c: benchmark[c.name] for c in constants}
 
     with tempfile.TemporaryDirectory() as cache:
-        start = time.perf_counter()
-        model = Model("whipple_kane", parameters=constants, sympy_model=kane)
-        system = compile_model(model, methods=("rk4",), outputs=("rhs",), cache_dir=cache)
-        emit(ours_pipeline_s=time.perf_counter() - start,
-             instruction_set=" ".join(system.instruction_set) or "baseline")
-        progress(f"bicycle: lagcodegen pipeline {time.perf_counter() - start:.1f} s")
-        # PyDy's Cython build gets the flag of the vector instruction set ours was built with
-        # (setuptools appends $CFLAGS), so that both C codes use the same instructions
-        os.environ["CFLAGS"] = " ".join([os.environ.get("CFLAGS", ""), *system.instruction_set]).strip()
-        start = time.perf_counter()
-        rates = kane.kindiffdict()
-        # lists, not Matrices: PyDy 0.9.4 adds coordinates + speeds for its docstring (elementwise for Matrices)
-        pydy_rhs = generate_ode_function(kane.forcing, list(kane.q), list(kane.u), constants,
-                                         mass_matrix=kane.mass_matrix,
-                                         coordinate_derivatives=sp.Matrix([rates[c.diff()] for c in kane.q]),
-                                         generator="cython", constants_arg_type="array")
-        emit(pydy_pipeline_s=time.perf_counter() - start)
-        progress(f"bicycle: PyDy generate + compile {time.perf_counter() - start:.1f} s")
+        system, seconds = ours_pipeline(kane, constants, cache)
+        emit(ours_pipeline_s=seconds, instruction_set=" ".join(system.instruction_set) or "baseline")
+        progress(f"bicycle: lagcodegen pipeline {seconds:.1f} s")
+        pydy_rhs, seconds = pydy_pipeline(kane, constants, system.instruction_set)
+        emit(pydy_pipeline_s=seconds)
+        progress(f"bicycle: PyDy generate + compile {seconds:.1f} s")
 
         params = {c.name: v for c, v in values.items()}
         ours_x0 = upright_state(kane, system, values)
@@ -184,17 +227,30 @@ def worker_measure(quick: str, repeat: str) -> None:
 def run(options) -> dict:
     data = run_worker(__file__, ["measure", int(options.quick), options.bicycle_repeat],
                       [options.timeout or 900.0] * 4)
+    samples = [(data["ours_pipeline_s"], data["pydy_pipeline_s"])] if "pydy_pipeline_s" in data else []
+    for i in range(options.bicycle_pipelines - 1):  # more fresh processes, PyDy first every other time
+        progress(f"bicycle: pipelines, fresh process {i + 2} of {options.bicycle_pipelines}")
+        more = run_worker(__file__, ["pipelines", "pydy" if i % 2 == 0 else "ours"], [options.timeout or 900.0] * 2)
+        if "pydy_pipeline_s" in more:
+            samples.append((more["ours_pipeline_s"], more["pydy_pipeline_s"]))
+    if samples:
+        data["ours_pipeline_s"] = min(ours for ours, _ in samples)
+        data["pydy_pipeline_s"] = min(pydy for _, pydy in samples)
+        data["pipeline_samples"] = samples
     ours, pydy, floor = data.get("ours_ns"), data.get("pydy_rk4_ns"), data.get("pydy_rhs_ns")
     lines = [f"Whipple bicycle, sympy test_kane3's KanesMethod (4 q, 3 + 3 dependent u); RK4, h = 1e-3; "
              f"{peer_versions('pydy', 'cython', 'sympy')}; worker status: {data['status']}",
              f"sympy's kanes_equations (shared, not timed for either): {data.get('sympy_s', float('nan')):.1f} s",
              f"both C codes built for this machine's instruction set: {data.get('instruction_set', '?')}"]
-    body = [["cold pipeline [s]", f"{data.get('ours_pipeline_s', float('nan')):.2f}",
+    body = [[f"cold pipeline [s], best of {len(samples)}", f"{data.get('ours_pipeline_s', float('nan')):.2f}",
              f"{data.get('pydy_pipeline_s', float('nan')):.2f}", ""]]
     if ours and pydy:
         body.append(["RK4 step [ns]", f"{ours:.0f}", f"{pydy:.0f}", f"{pydy / ours:.1f}x"])
         body.append(["4 bare rhs calls [ns]", "", f"{4 * floor:.0f}", f"{4 * floor / ours:.1f}x"])
     lines.append(format_table(["measure", "lagcodegen", "PyDy (Cython)", "ratio"], body))
+    if samples:
+        lines.append("cold pipelines, each pair from one fresh process (ours, PyDy's) [s]: "
+                     + ", ".join(f"({a:.2f}, {b:.2f})" for a, b in samples))
     if "agreement" in data:
         lines.append(f"10 RK4 steps from the same state, ours vs PyDy's: max |difference| {data['agreement']:.1e}")
     rows = [{k: v for k, v in data.items() if k != "status"}]
@@ -211,7 +267,7 @@ def run(options) -> dict:
     return {"table": "\n".join(lines), "rows": rows, "goals": goals}
 
 
-WORKERS = {"measure": worker_measure}
+WORKERS = {"measure": worker_measure, "pipelines": worker_pipelines}
 
 if __name__ == "__main__":
     if len(sys.argv) >= 3 and sys.argv[1] == "--worker" and sys.argv[2] in WORKERS:

@@ -47,7 +47,8 @@ from .compiler import (
 )
 from .instruction_set import host_flags, missing_features
 
-__all__ = ["BuildError", "CompiledSystem", "build_module", "compiler_available", "DEFAULT_FLAGS"]
+__all__ = ["BuildError", "CompiledSystem", "build_module", "compiler_available", "host_instruction_set",
+           "DEFAULT_FLAGS"]
 
 # A cdef naming a function the header does not declare fails to compile (with gcc's message)
 # instead of producing a module that cannot be imported.
@@ -177,6 +178,12 @@ def _compiler_identity(command: tuple[str, ...]) -> str:
         raise BuildError(f"no working C compiler: `{shown} --version` failed; {_INSTALL_HINT}",
                          command=shown, stderr=run.stderr)
     return f"{shown}: {lines[0]}"
+
+
+def host_instruction_set(compiler: str | None = None) -> tuple[str, ...]:
+    """The vector instruction-set flags `build_module` adds on this machine for ``compiler``
+    (default ``$CC``, else Python's): ``instruction_set.host_flags``."""
+    return host_flags(tuple(_compiler_command(compiler)))
 
 
 def compiler_available(compiler: str | None = None) -> bool:
