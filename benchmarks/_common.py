@@ -123,7 +123,7 @@ def rhs_harness(sources, with_hand: bool):
     """A cffi module looping over the generated rhs (and the hand-written one) in C.
 
     The generated ``.c`` and ``hand_double_pendulum.c`` are separate translation units, both
-    compiled with lagcodegen's ``DEFAULT_FLAGS``: every evaluation is a real call, as from an
+    compiled with lagcodegen's flags (``peers.default_flags``): every evaluation is a real call, as from an
     integrator in another file, and nothing is inlined or hoisted out of the loop.
     ``bench_<who>_independent`` evaluates ``reps`` times at each of ``n_states`` states
     (throughput); ``bench_<who>_chained`` takes explicit Euler steps x += h f(x), so each

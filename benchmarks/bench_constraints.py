@@ -385,9 +385,9 @@ def format_report(data: dict, rows: list) -> str:
     import platform
 
     from _common import compiler_version, peer_versions
+    from peers import default_flags
 
     import lagcodegen
-    from lagcodegen.native.build import DEFAULT_FLAGS
 
     scenarios = list(data["scenarios"])
     checkpoints = data["checkpoints"]
@@ -403,7 +403,7 @@ def format_report(data: dict, rows: list) -> str:
     head = [
         f"constraints suite: lagcodegen {lagcodegen.__version__}, "
         f"{peer_versions('numpy', 'scipy', 'cffi', 'sympy')}, "
-        f"Python {platform.python_version()}, {compiler_version()}, flags {' '.join(DEFAULT_FLAGS)}",
+        f"Python {platform.python_version()}, {compiler_version()}, flags {' '.join(default_flags())}",
         "models: catalog.slider_crank() (n = 5 redundant coordinates, m = 4 holonomic constraints, "
         "Lagrange I) and catalog.slider_crank_minimal() (theta only, Lagrange II); both "
         "compile_model(methods=('rk4',))"

@@ -396,9 +396,9 @@ def format_report(data, rows, methods, timeout, quick) -> str:
     import platform
 
     from _common import compiler_version, peer_versions
+    from peers import default_flags
 
     import lagcodegen
-    from lagcodegen.native.build import DEFAULT_FLAGS
 
     jit, pydy = data["jitcode"], data["pydy"]
     per_decade = PER_DECADE[quick]
@@ -413,7 +413,7 @@ def format_report(data, rows, methods, timeout, quick) -> str:
         f"time: wall clock, minimum (best) of {REPEAT} runs on a shared 2-core machine; each "
         f"contender in a fresh process, time-out {timeout:g} s per phase; compile times excluded:",
         f"    ours: direct cffi call of the generated C simulate (no Python in the loop), flags "
-        f"{' '.join(DEFAULT_FLAGS)}; N = 100..1e6 steps, {per_decade} per decade, every DEFAULT_METHOD",
+        f"{' '.join(default_flags())}; N = 100..1e6 steps, {per_decade} per decade, every DEFAULT_METHOD",
         f"    hand RK4: peers/hand_double_pendulum.c hand_dp_rk4_run, same flags, same N grid "
         f"(agrees with our rk4 at equal N to {fmt(agreement, '.1e')})",
         f"    JiTCODE: compiled rhs (its defaults: -O3 -ffast-math -march=native), scipy ode "

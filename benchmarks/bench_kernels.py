@@ -404,14 +404,14 @@ def format_report(ops_rows, timing_rows, timeout, repeat) -> str:
 
     import sympy
     from _common import compiler_version, peer_versions
+    from peers import default_flags
 
     import lagcodegen
-    from lagcodegen.native.build import DEFAULT_FLAGS
 
     head = [
         f"kernels suite: lagcodegen {lagcodegen.__version__}, sympy {sympy.__version__}, "
         f"{peer_versions('pydy', 'Cython', 'numpy', 'cffi')}, Python {platform.python_version()}, "
-        f"{compiler_version()}; flags {' '.join(DEFAULT_FLAGS)} for ours and hand C",
+        f"{compiler_version()}; flags {' '.join(default_flags())} for ours and hand C",
         f"every cell from fresh processes under a hard time-out of {timeout:g} s per phase "
         f"(imports {IMPORT_TIMEOUT:g} s, never timed); shared 2-core machine, so every time is the "
         f"minimum (best) of repeats: pipeline and PyDy",

@@ -395,7 +395,7 @@ def _compiler_command() -> list:
 
 
 def worker_vector() -> None:
-    from lagcodegen.native.build import DEFAULT_FLAGS
+    from peers import default_flags
 
     sources = _compiled(DP).lane_variant().sources  # the build sweep() runs: with the lane kernel
     emit(phase="ready")
@@ -404,7 +404,7 @@ def worker_vector() -> None:
         (tmp / sources.header_name).write_text(sources.header)
         c_file = tmp / sources.source_name
         c_file.write_text(sources.source)
-        command, flags = _compiler_command(), list(DEFAULT_FLAGS)
+        command, flags = _compiler_command(), list(default_flags())
         lines = sources.source.splitlines()
         spans = function_spans(sources.source)
         optimized = _gcc(command, flags + ["-fopt-info-vec-optimized"], c_file)
@@ -643,15 +643,15 @@ def format_report(rows, checks, vector, target, timeout, start_load) -> str:
     import platform
 
     from _common import compiler_version, peer_versions
+    from peers import default_flags
 
     import lagcodegen
-    from lagcodegen.native.build import DEFAULT_FLAGS
 
     members = next((r["members"] for r in rows if r["tool"] == "lcg" and "members" in r), None)
     grid = "?" if members is None else f"{math.isqrt(members)} x {math.isqrt(members)} = {members}"
     head = [
         f"sweep suite: lagcodegen {lagcodegen.__version__}, {peer_versions('mujoco', 'scipy', 'numpy')}, "
-        f"Python {platform.python_version()}, {compiler_version()}, flags {' '.join(DEFAULT_FLAGS)}",
+        f"Python {platform.python_version()}, {compiler_version()}, flags {' '.join(default_flags())}",
         f"unit: member-steps per second (one RK4 step, h = {H:g} s, of one member); M = 1e6",
         "timer: wall = time.perf_counter around one whole batch (all members x steps, Python call included: "
         "sweep() with its result arrays; MuJoCo's Rollout.rollout in calls of "

@@ -35,10 +35,11 @@ def peer_cache_dir() -> Path:
 
 
 def default_flags() -> tuple:
-    """lagcodegen's compile flags (``build.DEFAULT_FLAGS``): peers get exactly the same."""
-    from lagcodegen.native.build import DEFAULT_FLAGS
+    """lagcodegen's compile flags on this machine (``build.DEFAULT_FLAGS`` and the vector
+    instruction set's, ``build.host_instruction_set``): peers get exactly the same."""
+    from lagcodegen.native.build import DEFAULT_FLAGS, host_instruction_set
 
-    return tuple(DEFAULT_FLAGS)
+    return (*DEFAULT_FLAGS, *host_instruction_set())
 
 
 def build_cffi(stem: str, cdef: str, source: str, sources=(), include_dirs=(), flags=None):
