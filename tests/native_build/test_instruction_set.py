@@ -81,7 +81,7 @@ def test_host_build_gives_the_baseline_numbers_to_the_last_bit(tmp_path, monkeyp
     portable = compile_model(model, methods=("rk4",), lanes=4, cache_dir=tmp_path / "portable")
     assert host.instruction_set == ("-mavx2",) and portable.instruction_set == ()
     assert host.key != portable.key
-    assert "built for this machine's -mavx2" in host.report()
+    assert "built for -mavx2" in host.report()
     if shutil.which("objdump"):  # the flag reached the compiler: VEX-encoded arithmetic in the module
         text = subprocess.run(["objdump", "-d", str(host.path)], capture_output=True, text=True).stdout
         assert "vmulsd" in text
@@ -92,7 +92,11 @@ def test_host_build_gives_the_baseline_numbers_to_the_last_bit(tmp_path, monkeyp
     b = simulate(portable, x0, t_end=4.0, h=1e-3)
     assert a.ok and b.ok
     np.testing.assert_array_equal(a.x, b.x)
-    # the lane sweep (vectorized across members: four doubles per vector with AVX2, two without)
+    # the lane sweep (vectorized across members: four doubles per vector with AVX2, two without),
+    # each lane module for its system's instruction set whatever the environment says by then
+    # (found by review: the host system's lane module followed LAGCODEGEN_PORTABLE=1 here)
+    assert host.lane_variant().instruction_set == ("-mavx2",)
+    assert portable.lane_variant().instruction_set == ()
     grid = {"q1": np.linspace(0.1, 3.0, 11)}
     sa = sweep(host, grid, x0=x0, t_end=2.0, h=1e-3, threads=1)
     sb = sweep(portable, grid, x0=x0, t_end=2.0, h=1e-3, threads=1)
@@ -120,3 +124,32 @@ def test_a_module_built_for_avx2_is_not_opened_on_a_cpu_without_it(tmp_path, mon
                                              system.layout, None, instruction_set=system.instruction_set))
     with pytest.raises(BuildError, match="built for -mavx2, and this CPU has no avx2"):
         pickle.loads(bare)
+
+
+@pytest.mark.compiler
+@needs_cc
+@needs_x86
+def test_a_module_whose_flags_chose_instructions_is_rebuilt_on_another_cpu(tmp_path, monkeypatch):
+    """Found by review: with extra_compile_args=("-mavx2",) (or -march=native) and LAGCODEGEN_PORTABLE=1
+    the module recorded no instruction set, and a worker without AVX2 opened it."""
+    monkeypatch.setenv(instruction_set.PORTABLE_ENV, "1")
+    monkeypatch.setenv("LAGCODEGEN_CACHE_DIR", str(tmp_path))
+    system = compile_model(catalog.double_pendulum(), methods=("rk4",), lanes=0, cache_dir=tmp_path,
+                           extra_compile_args=("-march=native",))
+    assert system.instruction_set == () and system.built_on == instruction_set.this_cpu()
+    assert "built for the CPU of the machine that built it" in system.report()
+    blob = pickle.dumps(system)
+    assert pickle.loads(blob).path == system.path  # this CPU: the same module
+    monkeypatch.setattr(instruction_set, "_this_cpu", lambda: frozenset({"sse2"}))
+    there = pickle.loads(blob)
+    assert there.path != system.path and there.built_on == frozenset()
+    x0 = {"q1": 1.0, "q2": 0.5, "q1_d": 0.0, "q2_d": 0.0}
+    np.testing.assert_array_equal(simulate(there, x0, t_end=1.0, h=1e-3).x, simulate(system, x0, t_end=1.0, h=1e-3).x)
+
+
+def test_flags_that_choose_instructions_are_recognized():
+    assert instruction_set.selects_instructions(["-O2", "-march=native"])
+    assert instruction_set.selects_instructions(["-mfma"]) and instruction_set.selects_instructions(["-mavx512f"])
+    assert instruction_set.selects_instructions(["-mcpu=native"])
+    assert not instruction_set.selects_instructions(["-O2", "-ffast-math", "-mfpmath=sse", "-m64"])
+    assert instruction_set.missing_features((), frozenset({"sse2"}), built_on=frozenset({"sse2", "fma"})) == ["fma"]

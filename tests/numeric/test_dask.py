@@ -76,8 +76,8 @@ def test_restore_rebuilds_when_the_module_path_is_missing(pendulum, tmp_path, mo
     # what a worker on another machine gets: a path that does not exist there, plus the sources
     missing = tmp_path / "elsewhere" / pendulum.path.name
     assert not missing.exists() and pendulum.sources is not None
-    key, _, module_name, layout, sources, lane_build, instruction_set = pendulum.__reduce__()[1]
-    rebuilt = _restore(key, str(missing), module_name, layout, sources, lane_build, instruction_set)
+    key, _, module_name, layout, sources, lane_build, *machine = pendulum.__reduce__()[1]
+    rebuilt = _restore(key, str(missing), module_name, layout, sources, lane_build, *machine)
     assert (rebuilt.lane_build is None) == (pendulum.lane_build is None)  # the lane kernel can follow
     assert rebuilt.path.is_file() and cache in rebuilt.path.parents  # built into its own cache
     assert rebuilt.key == pendulum.key and rebuilt.module_name == pendulum.module_name

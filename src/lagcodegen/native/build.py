@@ -45,7 +45,7 @@ from .compiler import (
     start_kernel_compile,
     stop,
 )
-from .instruction_set import host_flags, missing_features
+from .instruction_set import host_flags, missing_features, selects_instructions, this_cpu
 
 __all__ = ["BuildError", "CompiledSystem", "build_module", "compiler_available", "host_instruction_set",
            "DEFAULT_FLAGS"]
@@ -54,7 +54,9 @@ __all__ = ["BuildError", "CompiledSystem", "build_module", "compiler_available",
 # instead of producing a module that cannot be imported.
 # -O3 unrolls the stage loops; -fno-math-errno lets gcc fuse sin and cos of one angle into sincos
 # (the kernels never read errno, and IEEE results are unchanged)
-DEFAULT_FLAGS = ("-O3", "-std=c99", "-fno-math-errno", "-Werror=implicit-function-declaration")
+# -ffp-contract=off: no multiply-add is fused where the target has FMA (clang's default is "on", gcc's
+# is off in ISO C mode), so -march=native or a later -mfma leaves the numbers as they are
+DEFAULT_FLAGS = ("-O3", "-std=c99", "-fno-math-errno", "-ffp-contract=off", "-Werror=implicit-function-declaration")
 #: after the caller's flags: the statuses rest on isfinite() and x != x, which -ffinite-math-only
 #: (part of -ffast-math) compiles away, and a NaN state would then end a run with status OK
 IEEE_FLAGS = ("-fno-finite-math-only",)
@@ -91,6 +93,9 @@ class CompiledSystem:
     cost: BuildCost | None = field(default=None, repr=False, compare=False)
     #: the flags of the building machine's vector instruction set (`instruction_set.host_flags`)
     instruction_set: tuple = field(default=(), repr=False, compare=False)
+    #: the building machine's CPU features when the caller's flags chose instructions (-march=native,
+    #: -mfma, ...): a process on a CPU without all of them builds the module again instead of opening it
+    built_on: frozenset = field(default=frozenset(), repr=False, compare=False)
 
     def report(self) -> str:
         """What was built and how: the formulation (trees: which one and the operation estimate
@@ -102,8 +107,11 @@ class CompiledSystem:
             lines.append(f"formulation: {layout.formulation}")
         if self.sources is not None:
             lines.append(f"C source: {len(self.sources.source)} bytes ({self.sources.source_name})")
-        lines.append(f"built for this machine's {' '.join(self.instruction_set)}" if self.instruction_set
-                     else "built for the baseline instruction set")
+        if self.built_on:
+            lines.append("built for the CPU of the machine that built it (its compile flags chose the instructions)")
+        else:
+            lines.append(f"built for {' '.join(self.instruction_set)}" if self.instruction_set
+                         else "built for the baseline instruction set")
         if self.cost is not None:
             ops = sum(count for _, count in self.cost.ops)
             lines.append(f"estimated build: {self.cost.seconds:.1f} s, {self.cost.megabytes:.0f} MB of compiler "
@@ -114,26 +122,30 @@ class CompiledSystem:
 
     def __reduce__(self):
         return (_restore, (self.key, str(self.path), self.module_name, self.layout, self.sources, self.lane_build,
-                           self.instruction_set))
+                           self.instruction_set, self.built_on))
 
     def lane_variant(self) -> CompiledSystem | None:
-        """The same model built with the lane sweep kernel (compiled once, then cached), or None."""
+        """The same model built with the lane sweep kernel (compiled once, then cached), or None;
+        for the instruction set this module was built for (found by review: it followed
+        ``LAGCODEGEN_PORTABLE`` at the first sweep instead)."""
         if self.lane_build is None:
             return None
         sources, cache_dir, extra_compile_args = self.lane_build
-        return build_module(sources, cache_dir=cache_dir, extra_compile_args=extra_compile_args)
+        return build_module(sources, cache_dir=cache_dir, extra_compile_args=extra_compile_args,
+                            instruction_set=self.instruction_set)
 
 
 def _restore(key: str, path: str, module_name: str, layout: KernelLayout,
              sources: CSources | None = None, lane_build: tuple | None = None,
-             instruction_set: tuple = ()) -> CompiledSystem:
+             instruction_set: tuple = (), built_on: frozenset = frozenset()) -> CompiledSystem:
     so = Path(path)
     problem = None if path in _LOADED else cache.entry_problem(so.parent, key, so.name)
-    lacking = missing_features(instruction_set)
+    lacking = missing_features(instruction_set, built_on=built_on)
     if lacking and problem is None:
         # a worker whose CPU lacks what the module was built for (a shared cache on a mixed cluster):
         # opening it would end the process on an illegal instruction
-        problem = f"built for {' '.join(instruction_set)}, and this CPU has no {', '.join(lacking)}"
+        built_for = " ".join(instruction_set) or "the instructions its compile flags chose"
+        problem = f"built for {built_for}, and this CPU has no {', '.join(lacking)}"
     if problem is not None:
         # another machine (a Dask worker), or a damaged entry: build again (with the default
         # flags: the pickle does not carry extra ones) or say why not
@@ -143,7 +155,7 @@ def _restore(key: str, path: str, module_name: str, layout: KernelLayout,
         raise BuildError(f"compiled module {path} of model {layout.model!r} {state}; call build_module again")
     module = _import(path, module_name)
     return CompiledSystem(module.ffi, module.lib, key, so, module_name, layout, sources, lane_build,
-                          instruction_set=instruction_set)
+                          instruction_set=instruction_set, built_on=built_on)
 
 
 def _import(path: str, module_name: str) -> types.ModuleType:
@@ -219,8 +231,9 @@ def _check_names(sources: CSources, module_name: str) -> None:
             raise BuildError(f"CSources.{attr} {name!r} must be a plain file name ending in {ext}")
 
 
-def _key(sources: CSources, flags: list[str], identity: str) -> str:
+def _key(sources: CSources, flags: list[str], identity: str, built_on: frozenset = frozenset()) -> str:
     return cache.source_key({
+        **({"cpu": " ".join(sorted(built_on))} if built_on else {}),
         "header_name": sources.header_name, "header": sources.header,
         "source_name": sources.source_name, "source": sources.source, "cdef": sources.cdef,
         "flags": shlex.join(flags), "kernel_flags": shlex.join(KERNEL_FLAGS), "compiler": identity,
@@ -247,7 +260,7 @@ class _Job:
 
 
 def build_module(sources: CSources, *, cache_dir=None, extra_compile_args=(), compiler=None,
-                 cost: BuildCost | None = None) -> CompiledSystem:
+                 cost: BuildCost | None = None, instruction_set: tuple | None = None) -> CompiledSystem:
     """Compile (or fetch from the cache) and load the C kernels of one model.
 
     Parameters
@@ -266,6 +279,9 @@ def build_module(sources: CSources, *, cache_dir=None, extra_compile_args=(), co
     cost : BuildCost, optional
         Estimated compile cost (``build_cost.estimate_build_cost``); when the module has to be
         compiled and the estimate is high, a ``BuildCostWarning`` says so first.
+    instruction_set : tuple of str, optional
+        The vector instruction-set flags (default: this machine's, ``host_instruction_set``); a
+        flag this CPU cannot run is dropped for this machine's.
 
     Raises
     ------
@@ -277,9 +293,14 @@ def build_module(sources: CSources, *, cache_dir=None, extra_compile_args=(), co
         to a temporary one, with a ``cache.CacheDirWarning``.
     """
     command = tuple(_compiler_command(compiler))
-    instruction_set = host_flags(command)
+    if instruction_set is None or missing_features(instruction_set):
+        instruction_set = host_flags(command)
+    instruction_set = tuple(instruction_set)
     flags = (*DEFAULT_FLAGS, *instruction_set, *extra_compile_args, *IEEE_FLAGS)
-    key = _key(sources, list(flags), _compiler_identity(command))
+    # -march=native and the like: what the module runs on is the building machine's CPU, so it is
+    # part of the key (a shared cache), and of the pickle (`_restore`)
+    built_on = this_cpu() if selects_instructions(extra_compile_args) else frozenset()
+    key = _key(sources, list(flags), _compiler_identity(command), built_on)
     # bounded: the module name is also a file name and a C identifier (PyInit_<name>)
     module_name = f"_lcg_{mangle(sources.layout.model, max_len=40)}_{key[:16]}"
     _check_names(sources, module_name)
@@ -297,7 +318,7 @@ def build_module(sources: CSources, *, cache_dir=None, extra_compile_args=(), co
                     _MEMO[str(root), key] = _fetch(job, root)
         ffi, lib, so_path, seconds = _MEMO[str(root), key]
     return CompiledSystem(ffi, lib, key, so_path, module_name, sources.layout, sources,
-                          build_seconds=seconds, cost=cost, instruction_set=instruction_set)
+                          build_seconds=seconds, cost=cost, instruction_set=instruction_set, built_on=built_on)
 
 
 def _fallback(root: Path, exc: OSError, explicit, module_name: str) -> Path:
