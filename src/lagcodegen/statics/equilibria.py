@@ -215,7 +215,12 @@ def _solve_numeric(eom: EquationsOfMotion, G: sp.Matrix, vals: dict, guesses: An
     fun = vector_function(q, Gn, (n,))
     jac = vector_function(q, Gn.jacobian(q), (n, n))
     angles = angle_like(eom)
-    starts = _starting_points(eom, guesses, angles)
+    # angles taken modulo 2 pi: the equations are periodic in them, and a guess of 1e12 rad made the
+    # tolerance (which scales with |q|) so loose that a stalled root passed (found by review)
+    starts = np.array([_reduced(x, angles) for x in _starting_points(eom, guesses, angles)])
+    # the degeneracy test reads slopes at starts near a root: those of the coarse grid (8 per axis),
+    # whose distance from a root does not shrink as the search grid gets denser
+    coarse = starts if guesses is not None else _starting_points(eom, None, angles, per_axis_max=8)
     with np.errstate(all="ignore"):
         # size of the terms of each equation at the starts, |F_i| and |dF_i/dq| |q|: a start that is
         # already a root has |F| at round-off level, which alone would make the tolerance unreachable.
@@ -227,12 +232,13 @@ def _solve_numeric(eom: EquationsOfMotion, G: sp.Matrix, vals: dict, guesses: An
         tol = 1e-9 * np.maximum(sizes, 1e-12 * max(float(sizes.max(initial=0.0)), 1e-300))
         roots = []
         for x0 in starts:
-            x = scipy.optimize.root(fun, x0, jac=jac, method="hybr", options={"xtol": 1e-13}).x
+            x = _polished(fun, jac, _reduced(scipy.optimize.root(fun, x0, jac=jac, method="hybr",
+                                                                 options={"xtol": 1e-13}).x, angles), tol)
             residual = fun(x)
             if np.all(np.isfinite(x)) and np.all(np.isfinite(residual)) and np.all(np.abs(residual) <= tol):
                 roots.append(_canonical(x, angles))
         found = _unique(roots, angles)
-        singular = [x for x in found if _degenerate(jac, x, starts, angles)]
+        singular = [x for x in found if _degenerate(jac, x, coarse, angles)]
         if len(singular) > 1:
             merged = _unique(singular, angles, tol=DEGENERATE_SPREAD)
             found = [x for x in found if not any(x is y for y in singular)
@@ -245,6 +251,25 @@ def _solve_numeric(eom: EquationsOfMotion, G: sp.Matrix, vals: dict, guesses: An
                       "points fell) or degenerate; hold the free coordinates, or read them as one family",
                       EquilibriumWarning, stacklevel=3)
     return [dict(zip(q, map(float, x))) for x in found]
+
+
+def _polished(fun, jac, x: np.ndarray, tol: np.ndarray) -> np.ndarray:
+    """A few Newton steps from hybr's root, each kept only if no equation's residual, relative to its
+    tolerance, grows: hybr stops on the step size of the whole vector, and an equation of small terms
+    beside one of large terms was left 2e-9 rad off (found by review: two roots at q2 = 2e-9 and 3e-9
+    beside the one at 0, when the denser grid started there)."""
+    for _ in range(3):
+        r = fun(x)
+        J = jac(x)
+        if not (np.all(np.isfinite(r)) and np.all(np.isfinite(J))):
+            return x
+        step = np.linalg.lstsq(J, r, rcond=None)[0]
+        y = x - step
+        ry = fun(y)
+        if not (np.all(np.isfinite(ry)) and np.max(np.abs(ry) / tol) <= np.max(np.abs(r) / tol)):
+            return x
+        x = y
+    return x
 
 
 def _degenerate(jac, x: np.ndarray, starts: np.ndarray, angles: tuple) -> bool:
@@ -298,7 +323,8 @@ def angle_like(eom: EquationsOfMotion) -> tuple[bool, ...]:
     return tuple(flags)
 
 
-def _starting_points(eom: EquationsOfMotion, guesses: Any, angles: tuple) -> np.ndarray:
+def _starting_points(eom: EquationsOfMotion, guesses: Any, angles: tuple,
+                     per_axis_max: int | None = None) -> np.ndarray:
     n = eom.n
     if guesses is not None:
         guesses = [guesses] if isinstance(guesses, Mapping) else guesses
@@ -316,7 +342,9 @@ def _starting_points(eom: EquationsOfMotion, guesses: Any, angles: tuple) -> np.
             row = int(np.argwhere(~np.isfinite(x0))[0][0])
             raise ValueError(f"guesses[{row}] = {x0[row].tolist()} is not finite")
         return x0
-    per_axis = max(2, min(8, int(round(MAX_GUESSES ** (1.0 / n), 9))))
+    # as many per axis as MAX_GUESSES allows (found by review: a cap of 8 gave one coordinate 8 starts,
+    # and a rotor with 12 detent equilibria came back with 4 of them, no warning)
+    per_axis = max(2, min(per_axis_max or MAX_GUESSES, int(MAX_GUESSES ** (1.0 / n) + 1e-9)))
     axes = [-np.pi + 2 * np.pi * np.arange(per_axis) / per_axis if a
             else np.linspace(*LINEAR_GRID, per_axis) for a in angles]
     if per_axis ** n <= MAX_GUESSES:
@@ -324,6 +352,15 @@ def _starting_points(eom: EquationsOfMotion, guesses: Any, angles: tuple) -> np.
     low = np.array([-np.pi if a else LINEAR_GRID[0] for a in angles])
     high = np.array([np.pi if a else LINEAR_GRID[1] for a in angles])
     return np.random.default_rng(0).uniform(low, high, (MAX_GUESSES, n))
+
+
+def _reduced(x: np.ndarray, angles: tuple) -> np.ndarray:
+    """Angle-like entries reduced to (-pi, pi], the others as they are."""
+    y = np.array(x, dtype=float)
+    for i, a in enumerate(angles):
+        if a and np.isfinite(y[i]):
+            y[i] = np.pi - np.mod(np.pi - y[i], 2 * np.pi)
+    return y
 
 
 def _canonical(x: np.ndarray, angles: tuple) -> np.ndarray:
@@ -364,7 +401,9 @@ def resolve_values(eom: EquationsOfMotion, values: Mapping) -> dict:
     """``eom.parameter_values`` updated by ``values`` (keys: parameter Symbols or names)."""
     by_name = {p.name: p for p in eom.parameters}
     out = dict(eom.parameter_values)
-    for key, value in dict(values).items():
+    if not isinstance(values, Mapping):  # found by review: [9.81] failed in dict() with no word on values
+        raise ValueError(f"values must be a mapping parameter (Symbol or name) -> number, got {values!r}")
+    for key, value in values.items():
         symbol = by_name.get(key.name if isinstance(key, sp.Symbol) else key)
         if symbol is None:
             raise ValueError(f"unknown parameter {key!r} for model {eom.name!r} "
@@ -676,7 +715,9 @@ def _check_at_rest(eom: EquationsOfMotion, at: dict, rest: dict, K: sp.Matrix, v
                                  "statics.state_space.linearize_state")
         return
     force, stiffness = (np.array(A.evalf(), dtype=float) for A in (force, stiffness))
-    q0 = np.array([float(sp.sympify(at[c]).xreplace(numbers)) for c in eom.q])
+    # angles modulo 2 pi: the force is periodic in them, and |q0| of 6e8 rad loosened the test until a
+    # point 0.5 rad from any equilibrium passed (found by review)
+    q0 = _reduced(np.array([float(sp.sympify(at[c]).xreplace(numbers)) for c in eom.q]), angle_like(eom))
     for i, (residual, row) in enumerate(zip(force.ravel(), stiffness)):
         # relative to the row's stiffness (and its terms |K_i| |q0|), with no absolute floor: a floor
         # of 1 took any state of a 1 mg pendulum (forces ~1e-8) for an equilibrium
