@@ -84,3 +84,10 @@ def test_values_that_are_not_a_mapping_are_named():
     eom = derive_equations(catalog.double_pendulum())
     with pytest.raises(ValueError, match="values must be a mapping"):
         find_equilibria(eom, [9.81])
+
+
+def test_an_overflowing_linear_model_names_its_matrix():
+    # K0 of the double pendulum holds (m1 + m2) g l1 = 1e308 * 1e308 * ... = inf in doubles
+    eom = derive_equations(catalog.double_pendulum())
+    with pytest.raises(ValueError, match=r"linear model of 'double_pendulum' is not finite: .*g = 1e\+308"):
+        linearize(eom, [0.0, 0.0], {"g": 1e308, "m1": 1e308})

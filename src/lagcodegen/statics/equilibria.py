@@ -655,6 +655,12 @@ def linearize(eom: EquationsOfMotion, q0: Any, values: Mapping | None = None, in
     vals = resolve_values(eom, values)
     arrays = [np.array(substitute_values(eom, A, vals, f"linear model {name}").evalf(), dtype=float)
               for A, name in zip(mats, ("M0", "C0", "K0"))]
+    for name, array in zip(("M0", "C0", "K0"), arrays):  # found by review: scipy's "must not contain infs"
+        bad = np.argwhere(~np.isfinite(array))
+        if bad.size:
+            i, j = bad[0]
+            raise ValueError(f"the linear model of {eom.name!r} is not finite: {name}[{i}, {j}] = {array[i, j]} at "
+                             f"the parameter values {', '.join(f'{p} = {v:g}' for p, v in vals.items())}")
     numbers = {p: sp.Float(v) for p, v in vals.items()}
     return LinearModel(tuple(eom.q), tuple(float(sp.sympify(v).xreplace(numbers)) for v in point), *arrays)
 
