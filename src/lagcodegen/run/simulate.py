@@ -836,11 +836,20 @@ def make_rhs(system: CompiledSystem, params: Mapping | None = None, inputs=None)
     if layout.inputs and inputs is None:
         raise ValueError(f"model {layout.model!r} is driven by {', '.join(layout.inputs)}: pass inputs=")
 
+    names = layout.coordinates + layout.speeds
+
     def f(t, x):
+        # found by review: a short x, or short inputs, were read and written past their ends by the C
         x = np.ascontiguousarray(x, dtype=dtype)
+        if x.shape != (layout.n_state,):
+            raise ValueError(f"x must hold the {layout.n_state} values {', '.join(names)} of one state, "
+                             f"got shape {x.shape}")
         out = np.empty_like(x)
         if layout.inputs:
             r = np.ascontiguousarray(_signal_at(inputs, t, x), dtype=dtype)
+            if r.shape != (len(layout.inputs),):
+                raise ValueError(f"the inputs at t = {t} must be {len(layout.inputs)} values "
+                                 f"({', '.join(layout.inputs)}), got shape {r.shape}")
             code = rhs_c(t, c_pointer(system, x), c_pointer(system, r), p_ptr, c_pointer(system, out))
         else:
             code = rhs_c(t, c_pointer(system, x), p_ptr, c_pointer(system, out))

@@ -67,6 +67,7 @@ def derive_from_sympy(model: Model):
     if auxiliary:  # the unknown forces of the auxiliary equations, named if they reach the equations of motion
         known = set(coords) | set(speeds) | set(auxiliary) | {s.diff(TIME) for s in tuple(speeds) + auxiliary}
         exposed = tuple(me.find_dynamicsymbols(sp.Matrix(method.auxiliary_eqs)) - known - set(model.inputs))
+        _check_reaction_names(model, exposed)
     renamed = make_substitution(coords, speeds, q, u, "sympy model", inputs=model.inputs, reactions=exposed)
     zero = {a: 0 for a in auxiliary} | {a.diff(TIME): 0 for a in auxiliary}
 
@@ -130,6 +131,18 @@ def derive_from_sympy(model: Model):
         eom = replace(eom, configuration=rows,
                       dependent_coordinates=tuple(coords.index(c) for c in dependent_coordinates))
     return _with_route(eom, route)
+
+
+def _check_reaction_names(model: Model, exposed) -> None:
+    """A ModelError when an unknown force of the auxiliary equations bears a parameter's or an
+    input's name: renamed to a plain symbol it became that parameter, and the reactions were
+    dropped without a word (found by review: a tension T(t) beside a damping constant T)."""
+    taken = {p.name: "a parameter" for p in model.parameters} | {input_name(r): "an input" for r in model.inputs}
+    for force in sorted(exposed, key=str):
+        name = force.func.__name__ if hasattr(force, "func") else str(force)
+        if name in taken:
+            raise ModelError(f"model {model.name!r}: name {name!r} is used by {taken[name]} and by the reaction "
+                             f"{force} that Kane's auxiliary equations expose; rename one of them")
 
 
 def _check_inputs_outside_constraints(model: Model, groups) -> None:
