@@ -172,9 +172,13 @@ def test_a_run_off_a_velocity_constraint_is_warned_of():
     assert slip(run) < 1e-6
 
 
-def test_a_reaction_along_a_dependent_speed_is_named_as_one():
+def test_a_reaction_along_a_dependent_speed_is_the_blades_force(tmp_path):
     """Was: 'forcing contains Fl(t) ... list it in Model(..., inputs=[...])' for the blade force of a Kane
-    sleigh that Kane's auxiliary speed exposes, which is no input."""
+    sleigh that Kane's auxiliary speed exposes, which is no input; then (session 17) refused as a force
+    on a model speed, though it acts along the velocity constraint u2 = 0 (session 18: held by it).
+    By hand, in the body frame with u2 = 0: the lateral momentum balance of G (a along B.x from the
+    blade) gives Fl = m (u1 u3 + a u3'), and the moment about G gives (I + m a^2) u3' = -m a u1 u3, so
+    Fl = m u1 u3 I / (I + m a^2)."""
     t = me.dynamicsymbols._t
     x, y, th = me.dynamicsymbols("x y theta")
     u1, u2, u3, ua = me.dynamicsymbols("u1 u2 u3 ua")
@@ -195,8 +199,17 @@ def test_a_reaction_along_a_dependent_speed_is_named_as_one():
     kane = me.KanesMethod(N, q_ind=[x, y, th], u_ind=[u1, u3], u_dependent=[u2], kd_eqs=kd,
                           velocity_constraints=[u2], u_auxiliary=[ua])
     kane.kanes_equations([body], [(P, Fl * B.y)])
-    with pytest.raises(ModelError, match=r"contains Fl\(t\), a force the auxiliary speeds expose"):
-        derive_equations(Model("sleigh_blade_force", parameters=[m, inertia, a], sympy_model=kane))
+    from lagcodegen.pipeline import compile_model
+    from lagcodegen.run.simulate import reactions
+
+    system = compile_model(Model("sleigh_blade_force", parameters=[m, inertia, a], sympy_model=kane),
+                           methods=("rk4",), outputs=("rhs", "reactions"), cache_dir=tmp_path)
+    assert system.layout.reactions == ("Fl",)
+    values = {"m": 2.0, "I": 0.3, "a": 0.4}
+    speed, spin = 1.3, -0.7
+    got = reactions(system, [0.1, 0.2, 0.3, speed, spin], values)
+    expected = values["m"] * speed * spin * values["I"] / (values["I"] + values["m"] * values["a"] ** 2)
+    np.testing.assert_allclose(got, [expected], rtol=1e-12)
 
 
 def test_an_acceleration_in_nonhol_coneqs_is_named_as_one():

@@ -270,8 +270,9 @@ def make_substitution(coordinates, speeds, q, u, what: str, parameters=None, inp
             if exposed:
                 raise ModelError(f"{where} contains {exposed[0]}, a force the auxiliary speeds expose, in the "
                                  "equations of the model's own speeds: lagcodegen forms them for every speed, the "
-                                 "dependent ones too, so a reaction must do work on auxiliary speeds only (here it "
-                                 "also does work on a speed of the model); give it a direction no speed of the "
+                                 "dependent ones too, so a reaction must do work on auxiliary speeds only, or act "
+                                 "along the velocity constraints (a rolling contact's force, held by them); here it "
+                                 "also does work on a speed of the model; give it a direction no speed of the "
                                  "model moves its point in, or drop it from the loads")
             raise ModelError(f"{where} contains {', '.join(sorted(map(str, left)))}, which is not a "
                              f"coordinate or a speed of this model; a specified function of time that "
