@@ -71,3 +71,19 @@ def test_a_reaction_named_like_a_parameter_is_refused(tmp_path):
     assert system.layout.reactions == ("T",)
     got = reactions(system, [0.3, 1.0], {"m": 1.0, "l": 1.0, "g": 9.81, "c_d": 0.2})
     np.testing.assert_allclose(got, [9.81 * np.cos(0.3) + 1.0], rtol=1e-12)
+
+
+def test_joint_speeds_left_undefined_by_lagranges_method_are_named():
+    a1, a2, b1, b2 = me.dynamicsymbols("a1 a2 b1 b2")
+    m1, m2, length, g = sp.symbols("m1 m2 l1 g")
+    ceiling = me.RigidBody("C")
+    bob1 = me.RigidBody("B1", mass=m1)
+    bob2 = me.RigidBody("B2", mass=m2)
+    pin = me.PinJoint("J1", ceiling, bob1, a1, b1, child_point=length * bob1.frame.y)
+    slider = me.PrismaticJoint("J2", bob1, bob2, a2, b2, joint_axis=bob1.frame.y)
+    system = me.System.from_newtonian(ceiling)
+    system.add_joints(pin, slider)
+    system.apply_uniform_gravity(-g * ceiling.frame.y)
+    system.form_eoms(eom_method=me.LagrangesMethod)
+    with pytest.raises(ModelError, match=r"the joints' speeds b1\(t\) are not the rates of their coordinates"):
+        compile_model(Model("pin_slider", parameters=[m1, m2, length, g], sympy_model=system), methods=("rk4",))

@@ -29,6 +29,7 @@ def derive_from_sympy(model: Model):
     coords = tuple(method.q)
     auxiliary = tuple(getattr(method, "_uaux", ()))  # private: sympy 1.14 keeps Kane's auxiliary speeds there
     if isinstance(method, me.LagrangesMethod):
+        _check_joint_speeds_are_rates(model.sympy_model, method)
         # private: sympy 1.14 keeps the Lagrangian only in _L
         check_well_defined("the sympy model's Lagrangian", sp.sympify(method._L))
         held = list(method._hol_coneqs)  # private: sympy 1.14 keeps the holonomic constraints only there
@@ -306,6 +307,22 @@ def _massless_speeds_regularized(eom):
                    forcing=sp.ImmutableMatrix(eom.forcing + A.T * eom.constraint_bias),
                    route=eom.route + f" (massless dependent speeds {', '.join(str(eom.u[j]) for j in massless)}: "
                                      "M + A^T A, F + A^T gamma)")
+
+
+def _check_joint_speeds_are_rates(obj, method) -> None:
+    """A ModelError when joints (of a JointsMethod or System formed with LagrangesMethod) have speeds
+    other than their coordinates' rates: LagrangesMethod writes its equations in the rates and leaves
+    the joints' speeds in them, undefined (found by review: b1(t) was called a specified function of
+    time, to be listed in inputs=, which would have compiled a different model)."""
+    joints = getattr(obj, "joints", None) or ()
+    rates = {c.diff(TIME) for c in method.q}
+    left = me.find_dynamicsymbols(sp.Matrix(method.forcing)) | me.find_dynamicsymbols(sp.Matrix(method.mass_matrix))
+    stray = sorted((s for joint in joints for s in joint.speeds if s not in rates and s in left), key=str)
+    if stray:
+        raise ModelError(f"the joints' speeds {', '.join(map(str, stray))} are not the rates of their coordinates, "
+                         "and a LagrangesMethod leaves them in its equations undefined; form the equations with "
+                         "KanesMethod (form_eoms() without an argument), or give each joint speeds equal to its "
+                         "coordinates' rates (the joints' default)")
 
 
 def _formed_method(obj):
