@@ -159,23 +159,40 @@ def _absorbed_reactions(method, exposed, kindiff) -> list:
             for r, partial in enumerate(partials):
                 coefficients[f][r] += partial.dot(direction)
     rows = [sp.Matrix(c) for c in coefficients.values()]
+    if any(m.has(*_NOT_ANALYTIC) for m in [A, *rows]):
+        # samples in a box prove an identity only for analytic functions (found by review: a drag
+        # -mu f Heaviside(x - 2) B.x looked held by the blade at every sample and was dropped for x > 2)
+        return []
     unknowns = set().union(A.free_symbols, *(c.free_symbols for c in rows), me.find_dynamicsymbols(A),
                            *(me.find_dynamicsymbols(c) for c in rows))
     generator = random.Random(0)
     absorbed = []
     for f, c in zip(coefficients, rows):
-        held = True
-        for _ in range(4):
-            sample = {v: sp.Float(generator.uniform(0.3, 1.7)) for v in unknowns}
-            A_n = np.array(A.xreplace(sample).evalf(), dtype=float)
-            c_n = np.array(c.xreplace(sample).evalf(), dtype=float).ravel()
+        held, tested = True, 0
+        for _ in range(40):  # 4 samples where every entry is a finite real number
+            sample = {v: sp.Float(generator.uniform(-2.0, 2.0)) for v in unknowns}
+            try:
+                A_n = np.array(A.xreplace(sample).evalf(), dtype=float)
+                c_n = np.array(c.xreplace(sample).evalf(), dtype=float).ravel()
+            except (TypeError, ValueError):  # complex there (found by review: sqrt(R**2 - x**2) at x > R)
+                continue
+            if not (np.all(np.isfinite(A_n)) and np.all(np.isfinite(c_n))):
+                continue
             mu = np.linalg.lstsq(A_n.T, c_n, rcond=None)[0]
             if not np.linalg.norm(A_n.T @ mu - c_n) <= 1e-10 * max(np.linalg.norm(c_n), 1e-300):
                 held = False
                 break
-        if held:
+            tested += 1
+            if tested == 4:
+                break
+        if held and tested == 4:
             absorbed.append(f)
     return absorbed
+
+
+#: functions that are not analytic: a coefficient that holds one is never taken as identically held
+_NOT_ANALYTIC = (sp.Piecewise, sp.Heaviside, sp.Abs, sp.sign, sp.Max, sp.Min, sp.floor, sp.ceiling, sp.frac,
+                 sp.Mod, sp.DiracDelta, sp.re, sp.im)
 
 
 def _check_reaction_names(model: Model, exposed) -> None:
