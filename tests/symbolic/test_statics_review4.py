@@ -91,3 +91,32 @@ def test_an_overflowing_linear_model_names_its_matrix():
     eom = derive_equations(catalog.double_pendulum())
     with pytest.raises(ValueError, match=r"linear model of 'double_pendulum' is not finite: .*g = 1e\+308"):
         linearize(eom, [0.0, 0.0], {"g": 1e308, "m1": 1e308})
+
+
+@pytest.mark.parametrize("guess", [1e9 + 2.0, 1e11 + 1.0, 1e13 + 2.0])
+def test_a_huge_angle_guess_of_a_constrained_model_never_lands_off_its_constraints(guess):
+    """Found by review (helper-72): the round-off allowance grew with |theta| and a guess of 1e11 rad
+    returned y + l cos(theta) = -2.2e-4 as an equilibrium. An answer must satisfy x = l sin(theta),
+    y = -l cos(theta) to round-off at that theta (ulp(theta) = 2e-3 at 1e13), and sin(theta) = 0;
+    or there is no answer, with a ValueError."""
+    try:
+        q, lam = constrained_equilibrium(pinned_bar(), [0.3, -0.5, guess], {})
+    except ValueError as error:
+        assert "no constrained equilibrium" in str(error)
+        return
+    x, y, theta = q
+    rounding = 8 * np.spacing(abs(theta))
+    assert abs(x - np.sin(theta)) <= rounding and abs(y + np.cos(theta)) <= rounding
+    assert abs(np.sin(theta)) <= rounding
+
+
+def test_kane_configuration_constraints_are_named_by_constrained_equilibrium():
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "constraints"))
+    from test_constraints_review import kane_four_bar
+
+    model, _ = kane_four_bar()
+    with pytest.raises(ValueError, match="configuration constraints \\(q_dependent\\)"):
+        constrained_equilibrium(derive_equations(model), [0.5, -0.3194, 3.7982], {})

@@ -17,9 +17,11 @@ import sympy as sp
 from ..symbolic.derive import EquationsOfMotion
 from .consistent import checked_tolerance
 from .equilibria import (
+    angle_like,
     coordinate_point,
     equilibrium_conditions,
     hold_inputs,
+    reduce_angles,
     resolve_values,
     substitute_values,
     vector_function,
@@ -85,6 +87,10 @@ def constrained_equilibrium(eom: EquationsOfMotion, q_guess: Any, values: Mappin
     held = _held(eom, fix, q0)
     q0[list(held)] = list(held.values())
     free = [i for i in range(eom.n) if i not in held]
+    # the round-off allowance reads the free angles modulo 2 pi where every equation is periodic in
+    # them: at 1e11 rad it let points off the constraints pass (found by review)
+    angles = angle_like(eom, extra=eom.constraints)
+    periodic = tuple(angles[i] for i in free) + (False,) * eom.m
     lam = sp.Matrix(sp.symbols(f"lambda_0:{eom.m}", cls=sp.Dummy))
     A = substitute_values(eom, sp.Matrix(eom.constraint_jacobian), vals, "constraint Jacobian")
     F = substitute_values(eom, equilibrium_conditions(eom), vals, "equilibrium conditions")
@@ -95,7 +101,7 @@ def constrained_equilibrium(eom: EquationsOfMotion, q_guess: Any, values: Mappin
     F_num, A_num = vector_function(list(eom.q), F, (eom.n,)), vector_function(list(eom.q), A, A.shape)
     lam0 = np.linalg.lstsq(A_num(q0)[:, free].T, F_num(q0)[free], rcond=None)[0]
     x = _root(eom, vector_function(z, G, (len(z),)), vector_function(z, G.jacobian(z), (len(z), len(z))),
-              np.concatenate([q0[free], lam0]), z, lambda x: _force_scale(F_num, A_num, q0, free, x), tol)
+              np.concatenate([q0[free], lam0]), z, lambda x: _force_scale(F_num, A_num, q0, free, x), tol, periodic)
     q, lam_c = q0.copy(), x[len(free):]
     q[free] = x[:len(free)]
     rank = np.linalg.matrix_rank(A_num(q)[:, free])
@@ -109,6 +115,12 @@ def constrained_equilibrium(eom: EquationsOfMotion, q_guess: Any, values: Mappin
 def _check_static_constraints(eom: EquationsOfMotion) -> None:
     if eom.m == 0:
         raise ValueError(f"model {eom.name!r} has no holonomic constraints; use find_equilibria")
+    if eom.dependent_coordinates and eom.n_holonomic < eom.m:  # found by review: a Kane four-bar was
+        # told its constraints hold no configuration; before, it returned a point off its loop, status OK
+        raise ValueError(f"model {eom.name!r} holds its configuration by a KanesMethod's configuration "
+                         "constraints (q_dependent) and its motion by velocity constraints: constrained_equilibrium "
+                         "solves holonomic constraints with multipliers only (the energies and bodies routes' "
+                         "constraints=, a LagrangesMethod's hol_coneqs)")
     if eom.n_holonomic < eom.m:  # found by review: x, y of a sleigh drifted to 1e10 with no word
         raise ValueError(f"model {eom.name!r} has {eom.m - eom.n_holonomic} velocity constraint(s): they hold no "
                          "configuration, so its equilibria are not isolated; constrained_equilibrium takes "
@@ -158,7 +170,7 @@ def _held(eom: EquationsOfMotion, fix: Any, q0: np.ndarray) -> dict:
     return dict(sorted(held.items()))
 
 
-def _root(eom: EquationsOfMotion, fun, jac, x0: np.ndarray, z: list, scale, tol: float) -> np.ndarray:
+def _root(eom: EquationsOfMotion, fun, jac, x0: np.ndarray, z: list, scale, tol: float, periodic: tuple) -> np.ndarray:
     """scipy root (hybr, then lm) on the equations each divided by its size at x0 (forces of 1e-12 N m
     beside constraints of 1e-3 m otherwise stall the solver); ValueError naming the worst equation
     if neither converges."""
@@ -172,7 +184,7 @@ def _root(eom: EquationsOfMotion, fun, jac, x0: np.ndarray, z: list, scale, tol:
             r = fun(x)
             # plus the round-off of the rows' evaluation at x (found by review: an upright pinned bar,
             # l m g sin(theta) at the double nearest pi, 1.2e-15, was refused against 9.8e-16)
-            rounding = 16 * np.finfo(float).eps * (np.abs(jac(x)) @ np.abs(x))
+            rounding = 16 * np.finfo(float).eps * (np.abs(jac(x)) @ np.abs(reduce_angles(x, periodic)))
             if np.all(np.isfinite(r)) and np.all(np.abs(r) <= tol * scale(x) + rounding):
                 return x
             if np.all(np.isfinite(r)) and np.max(np.abs(r)) < np.max(np.abs(fun(best))):

@@ -217,7 +217,7 @@ def _solve_numeric(eom: EquationsOfMotion, G: sp.Matrix, vals: dict, guesses: An
     angles = angle_like(eom)
     # angles taken modulo 2 pi: the equations are periodic in them, and a guess of 1e12 rad made the
     # tolerance (which scales with |q|) so loose that a stalled root passed (found by review)
-    starts = np.array([_reduced(x, angles) for x in _starting_points(eom, guesses, angles)])
+    starts = np.array([reduce_angles(x, angles) for x in _starting_points(eom, guesses, angles)])
     # the degeneracy test reads slopes at starts near a root: those of the coarse grid (8 per axis),
     # whose distance from a root does not shrink as the search grid gets denser
     coarse = starts if guesses is not None else _starting_points(eom, None, angles, per_axis_max=8)
@@ -232,7 +232,7 @@ def _solve_numeric(eom: EquationsOfMotion, G: sp.Matrix, vals: dict, guesses: An
         tol = 1e-9 * np.maximum(sizes, 1e-12 * max(float(sizes.max(initial=0.0)), 1e-300))
         roots = []
         for x0 in starts:
-            x = _polished(fun, jac, _reduced(scipy.optimize.root(fun, x0, jac=jac, method="hybr",
+            x = _polished(fun, jac, reduce_angles(scipy.optimize.root(fun, x0, jac=jac, method="hybr",
                                                                  options={"xtol": 1e-13}).x, angles), tol)
             residual = fun(x)
             if np.all(np.isfinite(x)) and np.all(np.isfinite(residual)) and np.all(np.abs(residual) <= tol):
@@ -307,12 +307,13 @@ def vector_function(q: list, expr: sp.Matrix, shape: tuple):
     return lambda x: np.asarray(f(x), dtype=float).reshape(shape)
 
 
-def angle_like(eom: EquationsOfMotion) -> tuple[bool, ...]:
-    """Per coordinate: does it enter M and F only as sin/cos/tan(k q + ...), k an integer?
+def angle_like(eom: EquationsOfMotion, extra=()) -> tuple[bool, ...]:
+    """Per coordinate: does it enter M and F (and the ``extra`` expressions) only as
+    sin/cos/tan(k q + ...), k an integer?
 
     Those coordinates are angles: the equations are 2 pi-periodic in them.
     """
-    exprs = list(eom.mass_matrix) + list(eom.forcing)
+    exprs = list(eom.mass_matrix) + list(eom.forcing) + [sp.sympify(e) for e in extra]
     trig = set().union(*(e.atoms(*_TRIG) for e in exprs))
     flags = []
     for qi in eom.q:
@@ -354,7 +355,7 @@ def _starting_points(eom: EquationsOfMotion, guesses: Any, angles: tuple,
     return np.random.default_rng(0).uniform(low, high, (MAX_GUESSES, n))
 
 
-def _reduced(x: np.ndarray, angles: tuple) -> np.ndarray:
+def reduce_angles(x: np.ndarray, angles: tuple) -> np.ndarray:
     """Angle-like entries reduced to (-pi, pi], the others as they are."""
     y = np.array(x, dtype=float)
     for i, a in enumerate(angles):
@@ -723,7 +724,7 @@ def _check_at_rest(eom: EquationsOfMotion, at: dict, rest: dict, K: sp.Matrix, v
     force, stiffness = (np.array(A.evalf(), dtype=float) for A in (force, stiffness))
     # angles modulo 2 pi: the force is periodic in them, and |q0| of 6e8 rad loosened the test until a
     # point 0.5 rad from any equilibrium passed (found by review)
-    q0 = _reduced(np.array([float(sp.sympify(at[c]).xreplace(numbers)) for c in eom.q]), angle_like(eom))
+    q0 = reduce_angles(np.array([float(sp.sympify(at[c]).xreplace(numbers)) for c in eom.q]), angle_like(eom))
     for i, (residual, row) in enumerate(zip(force.ravel(), stiffness)):
         # relative to the row's stiffness (and its terms |K_i| |q0|), with no absolute floor: a floor
         # of 1 took any state of a 1 mg pendulum (forces ~1e-8) for an equilibrium
