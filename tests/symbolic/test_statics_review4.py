@@ -120,3 +120,17 @@ def test_kane_configuration_constraints_are_named_by_constrained_equilibrium():
     model, _ = kane_four_bar()
     with pytest.raises(ValueError, match="configuration constraints \\(q_dependent\\)"):
         constrained_equilibrium(derive_equations(model), [0.5, -0.3194, 3.7982], {})
+
+
+@pytest.mark.parametrize("potential", ["gauss", "coulomb", "log"])
+def test_a_decaying_force_has_no_equilibria_at_infinity(potential):
+    """Found by review (helper-72): V = -exp(-x^2) gave 165 'equilibria' at |x| > 12, where the
+    force is below the tolerance (the denser grid sent more starts there). By hand each V below has
+    dV/dx = 0 at x = 0 only."""
+    x = me.dynamicsymbols("x")
+    m, k, a = sp.symbols("m k a", positive=True)
+    V = {"gauss": -k * sp.exp(-x**2), "coulomb": k / sp.sqrt(x**2 + a**2), "log": k * sp.log(1 + x**2)}[potential]
+    eom = derive_equations(Model(potential, [x], [m, k, a], kinetic_energy=m * x.diff()**2 / 2, potential_energy=V,
+                                 parameter_values={"m": 1.0, "k": 1.0, "a": 0.1}))
+    found = find_equilibria(eom, {})
+    assert [float(next(iter(e.values()))) for e in found] == [0.0]

@@ -52,6 +52,7 @@ MAX_GUESSES = 512         # size of the default grid of starting points
 DEGENERATE_SLOPE = 1e-6   # an equilibrium whose Jacobian has a singular value below this, per equation's slope
 DEGENERATE_SPREAD = 1e-4  # degenerate ones this close (relative; rad for angles) are one
 LINEAR_GRID = (-2.0, 2.0)  # default guess range of coordinates that are not angles
+FAR_OUT = 5.0              # a degenerate root beyond FAR_OUT times LINEAR_GRID's reach is one at infinity
 _TRIG = (sp.sin, sp.cos, sp.tan)
 
 
@@ -157,6 +158,8 @@ def find_equilibria(eom: EquationsOfMotion, values: Mapping | None = None,
         Numeric starting points. Default: a deterministic grid, angle-like coordinates over
         [-pi, pi), the others over `LINEAR_GRID` (pass guesses for other scales); at most
         `MAX_GUESSES` points, a seeded random sample of the box when the grid would be bigger.
+        From the default grid, a root with a singular Jacobian beyond `FAR_OUT` times the grid's
+        reach is taken for one at infinity (a force that decays, as exp(-x^2) does) and dropped.
     inputs : sequence (n_r,) or mapping input (Symbol or name) -> value
         The inputs held constant; required when the model has inputs.
 
@@ -239,6 +242,13 @@ def _solve_numeric(eom: EquationsOfMotion, G: sp.Matrix, vals: dict, guesses: An
                 roots.append(_canonical(x, angles))
         found = _unique(roots, angles)
         singular = [x for x in found if _degenerate(jac, x, coarse, angles)]
+        if guesses is None:  # roots at infinity: a force that decays (exp(-x^2), 1/x) is as small as the
+            # tolerance far out, and hybr walked there from the grid (found by review: 165 'equilibria'
+            # of V = -exp(-x^2) at |x| > 12); degenerate and beyond FAR_OUT times the grid's reach
+            reach = FAR_OUT * max(abs(v) for v in LINEAR_GRID)
+            far = [x for x in singular if np.any(np.where(angles, 0.0, np.abs(x)) > reach)]
+            found = [x for x in found if not any(x is y for y in far)]
+            singular = [x for x in singular if not any(x is y for y in far)]
         if len(singular) > 1:
             merged = _unique(singular, angles, tol=DEGENERATE_SPREAD)
             found = [x for x in found if not any(x is y for y in singular)
