@@ -6,8 +6,9 @@ On x86-64 a kernel built with ``-mavx2`` (or ``-mavx``) writes its scalar arithm
 three-operand VEX forms, which saves the register copies of the two-operand SSE2 forms, and its
 lane loops in 256-bit vectors. Measured on the Whipple bicycle's RK4 step (a 2-core AMD EPYC,
 2026-11-27, best of 300 runs of 2000 steps per round; docs/benchmarks.txt): most rounds 2630-2770
-ns with the baseline flags, 2060-2180 ns with -mavx2, the same state to the last bit. The results do not change: -mavx2 does not imply
--mfma, so no multiply-add is fused, and without -ffast-math nothing is reassociated.
+ns with the baseline flags, 2060-2180 ns with -mavx2, the same state to the last bit. The results
+do not change: -mavx2 does not imply -mfma, so no multiply-add is fused, and without -ffast-math
+nothing is reassociated.
 
 ``LAGCODEGEN_PORTABLE`` set to anything but empty or 0 builds for the baseline instruction set
 (for modules that other machines of the same cache should share). The FMU export never uses these
