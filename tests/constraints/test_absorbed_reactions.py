@@ -15,23 +15,27 @@ from lagcodegen.pipeline import compile_model
 from lagcodegen.run.simulate import dependent_speeds, make_rhs, reactions
 
 
-def sleigh(drag=None):
-    x, y, th, ux, uy, w, ua, f = me.dynamicsymbols("x y theta u_x u_y omega u_a f")
+def sleigh(drag=None, pushed=False):
+    """The Chaplygin sleigh with its blade's lateral force f exposed by u_a; ``drag(x, f)``: a load
+    along the blade besides; ``pushed``: a second auxiliary speed along the blade, exposing a force
+    f_x there (which does work on u_x)."""
+    x, y, th, ux, uy, w, ua, ub, f, fx = me.dynamicsymbols("x y theta u_x u_y omega u_a u_b f f_x")
     m, inertia, a = sp.symbols("m I0 a", positive=True)
     N = me.ReferenceFrame("N")
     B = N.orientnew("B", "Axis", [th, N.z])
     B.set_ang_vel(N, w * N.z)
     O = me.Point("O")
     O.set_vel(N, 0)
-    P = O.locatenew("P", x * N.x + y * N.y)  # the blade's contact point, its lateral force exposed by u_a
-    P.set_vel(N, ux * N.x + uy * N.y + ua * B.y)
+    P = O.locatenew("P", x * N.x + y * N.y)  # the blade's contact point
+    P.set_vel(N, ux * N.x + uy * N.y + ua * B.y + (ub * B.x if pushed else 0 * B.x))
     G = P.locatenew("G", a * B.x)
     G.v2pt_theory(P, N, B)
-    method = me.KanesMethod(N, [x, y, th], [ux, w], u_dependent=[uy], u_auxiliary=[ua],
+    method = me.KanesMethod(N, [x, y, th], [ux, w], u_dependent=[uy], u_auxiliary=[ua, ub] if pushed else [ua],
                             kd_eqs=[x.diff() - ux, y.diff() - uy, th.diff() - w],
                             velocity_constraints=[(ux * N.x + uy * N.y).dot(B.y)])
+    along = (drag(x, f) if drag else 0) + (fx if pushed else 0)
     method.kanes_equations([me.RigidBody("sleigh", G, B, m, (me.inertia(B, 0, 0, inertia), G))],
-                           [(P, f * B.y + (drag(x, f) * B.x if drag else 0 * B.x))])
+                           [(P, f * B.y + along * B.x)])
     return method, (m, inertia, a), f
 
 
@@ -71,24 +75,8 @@ def test_the_sleighs_lateral_force_is_a_reaction(tmp_path, formulation):
 
 
 def test_a_force_that_does_work_on_a_speed_is_still_refused(tmp_path):
-    # a second auxiliary speed along the blade exposes a force f_x there, which pushes u_x: no
-    # constraint holds it, so the equations of the model's speeds would need it
-    x, y, th, ux, uy, w, ua, ub, fx, fy = me.dynamicsymbols("x y theta u_x u_y omega u_a u_b f_x f_y")
-    m, inertia, a = sp.symbols("m I0 a", positive=True)
-    N = me.ReferenceFrame("N")
-    B = N.orientnew("B", "Axis", [th, N.z])
-    B.set_ang_vel(N, w * N.z)
-    O = me.Point("O")
-    O.set_vel(N, 0)
-    P = O.locatenew("P", x * N.x + y * N.y)
-    P.set_vel(N, ux * N.x + uy * N.y + ua * B.y + ub * B.x)
-    G = P.locatenew("G", a * B.x)
-    G.v2pt_theory(P, N, B)
-    method = me.KanesMethod(N, [x, y, th], [ux, w], u_dependent=[uy], u_auxiliary=[ua, ub],
-                            kd_eqs=[x.diff() - ux, y.diff() - uy, th.diff() - w],
-                            velocity_constraints=[(ux * N.x + uy * N.y).dot(B.y)])
-    method.kanes_equations([me.RigidBody("sleigh", G, B, m, (me.inertia(B, 0, 0, inertia), G))],
-                           [(P, fy * B.y + fx * B.x)])
+    # f_x along the blade pushes u_x: no constraint holds it, so the model's equations would need it
+    method, (m, inertia, a), _ = sleigh(pushed=True)
     with pytest.raises(ModelError, match=r"f_x\(t\), a force the auxiliary speeds expose"):
         compile_model(Model("pushed_sleigh", parameters=[m, inertia, a], sympy_model=method), methods=("rk4",),
                       outputs=("rhs", "reactions"), cache_dir=tmp_path)
