@@ -375,13 +375,10 @@ def reduce_angles(x: np.ndarray, angles: tuple) -> np.ndarray:
 
 
 def _canonical(x: np.ndarray, angles: tuple) -> np.ndarray:
-    """Angle-like entries reduced to (-pi, pi]; round-off around zero (|x| < 1e-12) set to 0."""
-    y = np.array(x, dtype=float)
-    for i, a in enumerate(angles):
-        if a:
-            y[i] = np.pi - np.mod(np.pi - y[i], 2 * np.pi)
-            if y[i] <= -np.pi + 1e-9:
-                y[i] += 2 * np.pi
+    """Angle-like entries reduced to (-pi, pi] (-pi within 1e-9 taken as pi); round-off around zero
+    (|x| < 1e-12) set to 0."""
+    y = reduce_angles(x, angles)
+    y = np.where(np.array(angles, dtype=bool) & (y <= -np.pi + 1e-9), y + 2 * np.pi, y)
     return np.where(np.abs(y) < 1e-12, 0.0, y)
 
 
