@@ -37,6 +37,14 @@ CPUINFO = ("processor\t: 0\nvendor_id\t: AuthenticAMD\n"
 GCC = ("gcc",) if shutil.which("gcc") else None
 
 
+def needs_avx2_build(test):
+    """A test that compiles kernels for AVX2: a C compiler, x86-64 and a CPU with AVX2."""
+    for mark in (pytest.mark.skipif(not HAS_AVX2, reason="this CPU has no AVX2"), needs_x86, needs_cc,
+                 pytest.mark.compiler):
+        test = mark(test)
+    return test
+
+
 def test_cpu_features_are_read_from_the_flags_line():
     features = instruction_set.cpu_features(CPUINFO)
     assert {"avx", "avx2", "sse2", "fma"} <= features
@@ -69,10 +77,7 @@ def test_missing_features_name_what_the_flags_need():
     assert instruction_set.missing_features(("-O3",), frozenset()) == []
 
 
-@pytest.mark.compiler
-@needs_cc
-@needs_x86
-@pytest.mark.skipif(not HAS_AVX2, reason="this CPU has no AVX2")
+@needs_avx2_build
 def test_host_build_gives_the_baseline_numbers_to_the_last_bit(tmp_path, monkeypatch):
     monkeypatch.delenv(instruction_set.PORTABLE_ENV, raising=False)
     model = catalog.double_pendulum()
@@ -103,10 +108,7 @@ def test_host_build_gives_the_baseline_numbers_to_the_last_bit(tmp_path, monkeyp
     np.testing.assert_array_equal(sa.x_final, sb.x_final)
 
 
-@pytest.mark.compiler
-@needs_cc
-@needs_x86
-@pytest.mark.skipif(not HAS_AVX2, reason="this CPU has no AVX2")
+@needs_avx2_build
 def test_a_module_built_for_avx2_is_not_opened_on_a_cpu_without_it(tmp_path, monkeypatch):
     monkeypatch.delenv(instruction_set.PORTABLE_ENV, raising=False)
     monkeypatch.setenv("LAGCODEGEN_CACHE_DIR", str(tmp_path))
