@@ -1,7 +1,8 @@
 """sympy.physics.mechanics' own test systems, fed to lagcodegen unchanged (tools/sympy_peer_survey.py).
 
 Every KanesMethod, LagrangesMethod, System and JointsMethod that the installed sympy's test files
-form is either compiled and its rhs equals sympy's ``mass_matrix_full \\ forcing_full`` (the
+form is either compiled (at -O0, as the fuzz: the derivation and the generated C are checked here, the
+optimizer elsewhere) and its rhs equals sympy's ``mass_matrix_full \\ forcing_full`` (the
 independent reference) at random states, parameters and inputs to 1e-10, or refused with one of
 the documented reasons below; 1 s of the compiled RK4 also follows scipy's DOP853 on sympy's rhs.
 test_kane3's bicycle runs on its own (sympy's test function stopped once its KanesMethod is formed:
@@ -34,7 +35,7 @@ def rows(tmp_path_factory):
     survey = importlib.util.module_from_spec(spec)
     sys.modules[spec.name] = survey  # its dataclass looks itself up there
     spec.loader.exec_module(survey)
-    return survey.survey(FILES, cache_dir=tmp_path_factory.mktemp("peers"))
+    return survey.survey(FILES, cache_dir=tmp_path_factory.mktemp("peers"), extra_compile_args=("-O0",))
 
 
 def test_every_system_matches_or_is_refused_for_a_stated_reason(rows):
