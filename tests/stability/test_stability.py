@@ -495,3 +495,21 @@ def test_symplectic_euler_converges_on_damping_it_can_and_warns_where_it_cannot(
     with pytest.warns(StabilityWarning, match=r"velocity iteration contracts by h\*\|d ud/du\| = 0.9"):
         run = simulate(system, [1.0, 0.0], 0.252, 0.018, "symplectic_euler")
     assert run.status is Status.NEWTON_FAILED
+
+
+def test_the_stability_limits_are_isolated_once_per_method(compiled_example, monkeypatch):
+    """simulate's stability pre-check names the method's limits; their exact root isolation is cached
+    on the tableau (found 2026-11-27: every simulate call redid it, 17 ms of a 1-step double pendulum
+    run that takes 0.3 ms). A second run, and a third with another step, isolates no roots."""
+    from lagcodegen.integrators import tableaux
+
+    system = compiled_example("double_pendulum", methods=("rk4",))
+    isolated = []
+    original = tableaux._stable_interval_end
+    monkeypatch.setattr(tableaux, "_stable_interval_end", lambda g: isolated.append(g) or original(g))
+    simulate(system, [0.5, 0.2, 0.0, 0.0], t_end=1e-3, h=1e-3)
+    first = len(isolated)
+    assert first <= 2  # the real and the imaginary limit, if no earlier run asked for them
+    simulate(system, [0.5, 0.2, 0.0, 0.0], t_end=1e-3, h=1e-3)
+    simulate(system, [0.1, 0.0, 0.0, 0.0], t_end=2e-3, h=2e-4)
+    assert len(isolated) == first
