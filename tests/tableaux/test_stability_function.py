@@ -95,8 +95,10 @@ def test_round_off_growth_of_a_neutral_mode_is_ignored():
 
 
 def test_unstable_step_names_both_limits():
-    _, region = RK4.unstable_step(1.0, np.array([-1.0]), 1)
-    assert region == "h*w < 2.828 on the imaginary axis, 2.785 on the negative real axis"
+    # h lambda = -3, past RK4's 2.785 on the real axis (HW II, Sec. IV.2): |R(-3)| = 1.375
+    unstable, region = RK4.unstable_step(1.0, np.array([-3.0]), 10)
+    assert unstable and region == "h*w < 2.828 on the imaginary axis, 2.785 on the negative real axis"
+    assert RK4.unstable_step(1.0, np.array([-1.0]), 10) == (False, "")
 
 
 # -- stability intervals with a gap -------------------------------------------------------------
@@ -193,3 +195,18 @@ def test_latex_layout():
         r"\hline",
         r" & 1",
         r"\end{array}"])
+
+
+@pytest.mark.parametrize("name", sorted(tableaux.TABLEAUX))
+def test_amplification_is_the_exact_stability_function_without_lambdify(name, monkeypatch):
+    """|R(z)| by Horner on the coefficients of P and Q equals R evaluated exactly (sympy, 30 digits) at
+    points on both axes, in the left half-plane and far out; and no lambdify is needed (it took 150 ms
+    of each process's first simulate, found 2026-11-27)."""
+    tableau = tableaux.TABLEAUX[name]
+    exact = tableau.stability_polynomial()
+    points = np.array([-0.3, -2.5, 1.5j, -1 + 2j, -7 - 0.5j, -40.0])
+    monkeypatch.setattr(sp, "lambdify", lambda *args, **kwargs: pytest.fail("lambdify called"))
+    ours = tableau.amplification(points)
+    for z, value in zip(points, ours):
+        expected = abs(complex(exact.subs(Z, sp.Float(z.real, 30) + sp.I * sp.Float(z.imag, 30)).evalf(30)))
+        assert value == pytest.approx(expected, rel=1e-13), (z, value, expected)

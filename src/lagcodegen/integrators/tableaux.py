@@ -56,13 +56,18 @@ def _exact(value: Any, tableau: str, where: str) -> sp.Expr:
     return sp.Rational(value.numerator, value.denominator)
 
 
-_NUMERIC_STABILITY_FUNCTIONS: dict = {}  # coefficients -> numpy R(z); kept out of the (picklable) tableau
+_NUMERIC_STABILITY_FUNCTIONS: dict = {}  # tableau -> numpy R(z); kept out of the (picklable) tableau
 
 
 def _numeric_stability_function(tableau):
-    key = tableau  # frozen: hashed by its coefficients (a key of their strings took 0.3 ms per simulate)
+    """R(z) = P(z) / Q(z) for numpy arrays, by Horner on the coefficients (sympy's lambdify of R took
+    150 ms of the first simulate() of a process; a key of the coefficients' strings 0.3 ms of each)."""
+    key = tableau  # frozen: hashed by its coefficients
     if key not in _NUMERIC_STABILITY_FUNCTIONS:
-        _NUMERIC_STABILITY_FUNCTIONS[key] = sp.lambdify(Z, tableau.stability_polynomial(), "numpy")
+        P, Q = tableau._stability_parts
+        top = np.array([complex(c) for c in P.all_coeffs()])
+        bottom = np.array([complex(c) for c in Q.all_coeffs()])
+        _NUMERIC_STABILITY_FUNCTIONS[key] = lambda z: np.polyval(top, z) / np.polyval(bottom, z)
     return _NUMERIC_STABILITY_FUNCTIONS[key]
 
 
@@ -287,12 +292,14 @@ class ButcherTableau:
             return np.abs(_numeric_stability_function(self)(h_lambda))
 
     def unstable_step(self, h: float, settled: np.ndarray, n_steps: int) -> tuple[bool, str]:
-        """(unstable, the region in words): the step h amplifies the non-growing modes ``settled``
-        (eigenvalues with Re <= 0 of the Jacobian) more than tenfold over ``n_steps`` steps."""
+        """(unstable, the region in words; "" when stable): the step h amplifies the non-growing modes
+        ``settled`` (eigenvalues with Re <= 0 of the Jacobian) more than tenfold over ``n_steps`` steps."""
         growth = float(np.max(self.amplification(h * settled)))
         unstable = not growth <= 1 + 1e-12 and not n_steps * math.log(growth) <= math.log(10.0)
-        return unstable, (f"h*w < {self.imag_stability_limit():.4g} on the imaginary axis, "
-                          f"{self.real_stability_limit():.4g} on the negative real axis")
+        if not unstable:  # the words are for the warning only: their exact roots took 110 ms per method
+            return False, ""
+        return True, (f"h*w < {self.imag_stability_limit():.4g} on the imaginary axis, "
+                      f"{self.real_stability_limit():.4g} on the negative real axis")
 
     # -- display ---------------------------------------------------------------------------
     def _cells(self) -> tuple[list[list[str]], list[str]]:
