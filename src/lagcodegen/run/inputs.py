@@ -159,7 +159,7 @@ def _sampled(values: np.ndarray, names, t0: float, h: float, n_steps: int, strid
             expected += f" (per step), or {n_steps // stride} or {n_steps // stride + 1} (per stride {stride})"
         raise InputError(f"inputs {', '.join(names)}: an array of {rows} rows does not match the run: "
                          f"expected {expected} rows")
-    times = np.array([t0 + k * spacing * h for k in range(rows)])
+    times = t0 + (np.arange(rows) * spacing) * h  # as t0 + k * spacing * h, bit for bit (k * spacing exact)
     _finite(values, names, times)
     if linear:
         return InputTable(times=times, values=values)

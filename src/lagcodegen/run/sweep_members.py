@@ -292,8 +292,13 @@ def member_input_tables(system: CompiledSystem, columns, values, inputs, member_
                              f"{layout.inputs[column]!r} = {float(scale[member, column])!r} is not finite")
         return times, _within_precision(layout, scaled)
     k = max(t.times.size for t in tables)
-    times = np.array([np.pad(t.times, (0, k - t.times.size), mode="edge") for t in tables])
-    table_values = np.array([np.pad(t.values, ((0, k - t.times.size), (0, 0)), mode="edge") for t in tables])
+    # each member's table, its last knot repeated to k knots (np.pad per member took 56-74 us of it)
+    times = np.empty((len(tables), k))
+    table_values = np.empty((len(tables), k, tables[0].values.shape[1]))
+    for member, table in enumerate(tables):
+        size = table.times.size
+        times[member, :size], times[member, size:] = table.times, table.times[-1]
+        table_values[member, :size], table_values[member, size:] = table.values, table.values[-1]
     return times, _within_precision(layout, table_values)
 
 
