@@ -134,23 +134,22 @@ def check_member_starts(system: CompiledSystem, xs, ps, t0: float, columns, valu
     gives it SINGULAR_CONSTRAINTS as it gives a singular start of any other model (found by review:
     one such member refused the whole sweep)."""
     from .drift import DRIFT_TOLERANCE
-    from .simulate import _check_configuration, start_offsets
+    from .simulate import _check_configuration, member_offsets
 
     layout = system.layout
     configured = f"{layout.prefix}_project" in layout.functions and not layout.n_constraints
-    if not (layout.dependent_speeds or configured or layout.n_constraints):
-        return  # nothing a start can violate
+    if not (configured or layout.n_constraints):
+        return  # nothing a start can violate (eliminated speeds: a singular start is left to the run)
     n_p = len(layout.parameters)
     tolerance = DRIFT_TOLERANCE[layout.precision]
-    off = []
-    for i, (x, p) in enumerate(zip(xs, ps)):
-        try:
-            _check_configuration(system, x, p[:n_p], t0)
-        except ValueError as error:
-            raise ValueError(f"member {i} ({_member_text(columns, values[i])}): {error}") from None
-        offset = start_offsets(system, x, p[:n_p], t0)
-        if offset is not None and not offset <= tolerance:
-            off.append((i, offset))
+    if configured:
+        for i, (x, p) in enumerate(zip(xs, ps)):
+            try:
+                _check_configuration(system, x, p[:n_p], t0)
+            except ValueError as error:
+                raise ValueError(f"member {i} ({_member_text(columns, values[i])}): {error}") from None
+    offsets = member_offsets(system, xs, ps[:, :n_p], t0)
+    off = [] if offsets is None else [(int(i), float(offsets[i])) for i in np.flatnonzero(~(offsets <= tolerance))]
     _warn_off(off, f"start off the constraints of model {layout.model!r} (max |phi| or |A u + dphi/dt| > "
                    f"{tolerance:g})", "start each member on its constraints", columns, values, start=True)
 
@@ -161,19 +160,17 @@ def check_member_ends(system: CompiledSystem, x_final, ps, t_end: float, status,
     went unseen where simulate warns; found by review, a pendulum in Cartesian coordinates ended
     2 % short of its rod with status OK)."""
     from .drift import DRIFT_TOLERANCE
-    from .simulate import Status, start_offsets
+    from .simulate import Status, member_offsets
 
     layout = system.layout
     if not layout.n_constraints:
         _check_configuration_ends(system, x_final, ps, t_end, status, columns, values)
         return
     n_p, tolerance = len(layout.parameters), DRIFT_TOLERANCE[layout.precision]
-    off = []
-    for i, (x, p) in enumerate(zip(x_final, ps)):
-        if status[i] == Status.OK:
-            offset = start_offsets(system, np.ascontiguousarray(x), np.ascontiguousarray(p[:n_p]), t_end)
-            if offset is not None and not offset <= tolerance:
-                off.append((i, offset))
+    ended = np.flatnonzero(np.asarray(status) == int(Status.OK))
+    offsets = member_offsets(system, np.asarray(x_final)[ended], np.asarray(ps)[ended, :n_p], t_end)
+    drifted = [] if offsets is None else np.flatnonzero(~(offsets <= tolerance))
+    off = [(int(ended[k]), float(offsets[k])) for k in drifted]
     _warn_off(off, f"of model {layout.model!r} drifted off the constraints (max |phi| or |A u + dphi/dt| > "
                    f"{tolerance:g} at the end)", "sweep with project=True or a smaller h", columns, values)
 
