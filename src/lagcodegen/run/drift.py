@@ -55,41 +55,38 @@ def _tolerance(layout, tolerance) -> float | None:
 CONFIGURATION_SAMPLES = 200
 
 
-def configuration_offset(n_q: int, project_at, t: float, state) -> tuple:
-    """(status, |move| of each of the n_q coordinates): ``project_at(t, copy)`` puts a copy of
-    ``state`` onto Kane's configuration constraints in place; how far that moved the coordinates."""
-    moved = np.array(state, copy=True)
-    code = project_at(t, moved)
-    return code, np.abs(moved[:n_q] - np.asarray(state)[:n_q]).astype(np.float64)
-
-
-def warn_if_configuration_drifted(layout, trajectory, project_at, tolerance) -> bool:
+def warn_if_configuration_drifted(layout, trajectory, project_rows, tolerance) -> bool:
     """Warn (`ConstraintDriftWarning`, and return True) when a run of a model with Kane's
     configuration constraints (an eliminated build, whose C ``_project`` solves them for the
-    dependent coordinates; ``project_at(t, state)`` calls it in place and returns its status) ends
-    up, at a kept sample, more than ``tolerance`` (as ``drift_tolerance``) from where they put the
-    dependent coordinates. Found by review: a Kane four-bar run without projection opened its loop
-    by 4e-6 with status OK and no word; the eliminated speeds keep A u + b = 0 exactly, but nothing
-    held f(q) = 0."""
+    dependent coordinates; ``project_rows(times, states)`` projects copies of the rows of ``states``
+    and returns (their statuses, the copies), as `simulate.projected_rows`) ends up, at a kept
+    sample, more than ``tolerance`` (as ``drift_tolerance``) from where they put the dependent
+    coordinates. Found by review: a Kane four-bar run without projection opened its loop by 4e-6
+    with status OK and no word; the eliminated speeds keep A u + b = 0 exactly, but nothing held
+    f(q) = 0."""
     tolerance = _tolerance(layout, tolerance)
     if tolerance is None or layout.n_constraints or f"{layout.prefix}_project" not in layout.functions \
             or not len(trajectory.t):
         return False
     samples = np.unique(np.linspace(0, len(trajectory.t) - 1, CONFIGURATION_SAMPLES).astype(int))
-    for k in samples:
-        state = np.array(trajectory.x[k])
-        if not np.all(np.isfinite(state)):
-            break
-        code, off = configuration_offset(layout.n_q, project_at, float(trajectory.t[k]), state)
-        if code != 0 or not float(off.max(initial=0.0)) <= tolerance:
-            detail = "no configuration near it" if code != 0 else \
-                f"{layout.coordinates[int(np.argmax(off))]} is {off.max():.3g} from where they put it"
-            warnings.warn(
-                f"the run drifted off the configuration constraints: {detail} at t = {trajectory.t[k]:.6g} "
-                f"(drift_tolerance = {tolerance:g}); use project=True (or a smaller h)", ConstraintDriftWarning,
-                stacklevel=3)
-            return True
-    return False
+    states = np.asarray(trajectory.x)[samples]
+    finite = np.all(np.isfinite(states), axis=1)
+    if not finite.all():  # the samples up to the first state that is not finite (the run's status speaks of it)
+        samples, states = samples[:int(np.argmin(finite))], states[:int(np.argmin(finite))]
+    times = np.asarray(trajectory.t)[samples]
+    codes, projected = project_rows(times, states)
+    off = np.abs(projected[:, :layout.n_q] - states[:, :layout.n_q]).astype(np.float64)
+    failing = np.flatnonzero((codes != 0) | ~(off.max(axis=1, initial=0.0) <= tolerance))
+    if not failing.size:
+        return False
+    k = int(failing[0])
+    detail = "no configuration near it" if codes[k] != 0 else \
+        f"{layout.coordinates[int(np.argmax(off[k]))]} is {off[k].max():.3g} from where they put it"
+    warnings.warn(
+        f"the run drifted off the configuration constraints: {detail} at t = {times[k]:.6g} "
+        f"(drift_tolerance = {tolerance:g}); use project=True (or a smaller h)", ConstraintDriftWarning,
+        stacklevel=3)
+    return True
 
 
 def warn_if_drifted(trajectory, tolerance: float, m: int, holonomic: int | None = None) -> bool:
