@@ -20,7 +20,7 @@ from scipy.integrate import solve_ivp
 from lagcodegen import Model, derive_equations
 from lagcodegen.model import ModelError
 from lagcodegen.pipeline import compile_model
-from lagcodegen.run.simulate import c_pointer, dependent_speeds, parameter_vector, simulate, step_jacobians
+from lagcodegen.run.simulate import c_pointer, dependent_speeds, parameter_vector, reactions, simulate, step_jacobians
 from lagcodegen.run.sweep import sweep
 
 pytestmark = pytest.mark.compiler
@@ -335,8 +335,6 @@ def test_a_kane_model_with_configuration_constraints_is_refused_with_multipliers
 def test_contact_forces_from_auxiliary_speeds_equal_sympys(disc_with_contact_forces, formulation):
     """Reference: sympy's auxiliary_eqs at sympy's own accelerations (mass_matrix_full \\ forcing_full
     at the same state), solved for Fx, Fy, Fz."""
-    from lagcodegen.run.simulate import reactions
-
     kane, parameters = disc_with_contact_forces
     t = me.dynamicsymbols._t
     system = compile_model(Model(f"disc_{formulation}", parameters=parameters, sympy_model=kane,
@@ -365,7 +363,7 @@ def test_contact_forces_from_auxiliary_speeds_equal_sympys(disc_with_contact_for
 def test_a_disc_rolling_upright_and_straight_is_held_up_by_its_weight(disc_with_contact_forces):
     """By hand: upright (lean 0), straight (no yaw rate) steady rolling has no friction force and a
     normal force equal to the weight m g."""
-    from lagcodegen.run.simulate import reactions
+    pass
 
     kane, parameters = disc_with_contact_forces
     system = compile_model(Model("disc_upright", parameters=parameters, sympy_model=kane), methods=["rk4"])
@@ -383,7 +381,7 @@ def test_a_disc_rolling_upright_and_straight_is_held_up_by_its_weight(disc_with_
 def test_reactions_of_a_build_without_them_name_the_output(disc_with_contact_forces):
     """Found by review: the disc built with outputs=("rhs",) answered reactions() with "has no
     reactions", though its KanesMethod has them."""
-    from lagcodegen.run.simulate import reactions
+    pass
 
     kane, parameters = disc_with_contact_forces
     system = compile_model(Model("disc_rhs_only", parameters=parameters, sympy_model=kane), outputs=("rhs",),
@@ -507,3 +505,28 @@ def test_configuration_constraints_build_with_the_implicit_methods():
     by_hand = 0.5 * (0.3 ** 2 + 2.0 * 1.0 ** 2 + 3.0 * 0.2 ** 2)
     np.testing.assert_allclose(implicit.energy, by_hand, rtol=1e-12)
     np.testing.assert_allclose(implicit.x[-1], explicit.x[-1], atol=1e-5)  # midpoint's error ~ h^2
+
+
+def test_a_driven_models_reactions_take_one_input_row_per_state():
+    """The reactions of a driven model at k states with k rows of inputs (the states and rows read
+    through one buffer each since review found buffers per state at 3.7 us each). A particle on a
+    line along N.x, pushed by the inputs F along it and G across it, held by the guide's normal
+    force fy: no motion across, so fy = m g - G (by hand), whatever F and the state are."""
+    N = me.ReferenceFrame("N")
+    O = me.Point("O")
+    O.set_vel(N, 0)
+    m, k, g = sp.symbols("m k g", positive=True)
+    q1, u1, ua = me.dynamicsymbols("q1 u1 ua")
+    F, G, fy = me.dynamicsymbols("F G fy")
+    P = O.locatenew("P", q1 * N.x)
+    P.set_vel(N, u1 * N.x + ua * N.y)
+    kane = me.KanesMethod(N, [q1], [u1], kd_eqs=[q1.diff() - u1], u_auxiliary=[ua])
+    kane.kanes_equations([me.Particle("p", P, m)], [(P, (F - k * q1) * N.x + (G + fy - m * g) * N.y)])
+    system = compile_model(Model("guided", parameters=[m, k, g], sympy_model=kane, inputs=[F, G],
+                                 parameter_values={m: 2.0, k: 3.0, g: 9.81}), methods=["rk4"],
+                           outputs=("rhs", "reactions"))
+    assert system.layout.reactions == ("fy",)
+    states = np.array([[0.1, 0.0], [-0.4, 2.0], [1.5, -1.0]])
+    rows = np.array([[1.0, 0.5], [-3.0, 4.0], [0.0, -2.5]])
+    np.testing.assert_allclose(reactions(system, states, r=rows), (2.0 * 9.81 - rows[:, 1])[:, None], rtol=1e-14)
+    np.testing.assert_allclose(reactions(system, states, r=rows[1]), np.full((3, 1), 2.0 * 9.81 - 4.0), rtol=1e-14)

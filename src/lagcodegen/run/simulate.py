@@ -930,14 +930,18 @@ def _per_state(system: CompiledSystem, function: str, names: tuple, x, params, t
             raise ValueError(f"model {layout.model!r} is driven by {', '.join(layout.inputs)}: pass r=")
         held = np.broadcast_to(np.asarray(r, dtype=dtype), (len(states), len(layout.inputs)))
     out = np.empty((len(states), len(names)), dtype=dtype)
-    for i, (time, state) in enumerate(zip(times, states)):
-        state = np.ascontiguousarray(state)
-        arguments = [time, c_pointer(system, state)]
+    # one buffer per array, rows by pointer offsets (found by review: buffers per state took 3.7 us of each)
+    states = np.ascontiguousarray(states)
+    x_at, p_at, out_at = c_pointer(system, states), c_pointer(system, p), c_pointer(system, out)
+    r_at = c_pointer(system, np.ascontiguousarray(held)) if driven else None
+    n_x, n_out, n_r = layout.n_state, len(names), len(layout.inputs)
+    for i, time in enumerate(times.tolist()):
         if driven:
-            arguments.append(c_pointer(system, np.ascontiguousarray(held[i])))
-        code = call(*arguments, c_pointer(system, p), c_pointer(system, out[i]))
+            code = call(time, x_at + i * n_x, r_at + i * n_r, p_at, out_at + i * n_out)
+        else:
+            code = call(time, x_at + i * n_x, p_at, out_at + i * n_out)
         if code != Status.OK:
-            raise ValueError(f"{function.replace('_', ' ')} {', '.join(names)} at t = {time}, x = {state}: "
+            raise ValueError(f"{function.replace('_', ' ')} {', '.join(names)} at t = {time}, x = {states[i]}: "
                              f"{Status(code).message}")
     return out if np.ndim(x) == 2 else out[0]
 
