@@ -199,6 +199,10 @@ def check_signs(layout, ps: np.ndarray, what, names=None) -> None:
 def kernel_vector(system: CompiledSystem, values, names, what: str) -> np.ndarray:
     """``values``, one finite real per name, as the kernel's array (the low-level calls that take x,
     p or r as the C function does); a wrong length, a non-number or NaN raises naming ``what``."""
+    if type(values) is np.ndarray and values.dtype == np.float64 and values.shape == (len(names),):
+        array = values.astype(real_dtype(system))  # a copy; the float64 array a filter loop passes, checked at once
+        if np.isfinite(array).all():  # (found by review: the checks per entry took 29 us of a 0.3 us jacobian)
+            return array
     if isinstance(values, (str, bytes, Mapping)) or not np.iterable(values) or np.ndim(values) != 1:
         raise ValueError(f"{what} must be a sequence of {len(names)} number(s) ({', '.join(names)}), got {values!r}")
     if len(values) != len(names):
