@@ -331,7 +331,7 @@ class CallableInputs:
         limit = self._limit
         for v in result:
             if type(v) not in _PLAIN_NUMBERS or not -limit <= v <= limit:
-                return None  # a bool, a numpy scalar, NaN, infinite or beyond float: the full checks word it
+                return None  # a bool, another numpy scalar, NaN, infinite, beyond range: the full checks word it
         return result
 
     def _store(self, result, t: float, r_pointer) -> int:
