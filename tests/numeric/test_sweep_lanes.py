@@ -131,6 +131,17 @@ def test_the_lane_variant_is_built_and_keyed_once_per_process(pendulum):
     assert first is pendulum.lane_variant() and first.layout.prefix == pendulum.layout.prefix
 
 
+def test_two_lane_trig_choices_of_one_scalar_module_keep_their_own_lane_kernels(compiled_example):
+    """The scalar module of lane_trig="fast" and of "libm" is one (same source, same key); the kept lane
+    variant must still follow each object's own choice (a first version kept it by the scalar key, and
+    the libm sweep then ran the fast kernel: lanes differed from scalar in the last bit, in CI)."""
+    fast = compiled_example("double_pendulum", outputs=("rhs",), methods=("rk4",), lane_trig="fast")
+    libm = compiled_example("double_pendulum", outputs=("rhs",), methods=("rk4",), lane_trig="libm")
+    assert fast.key == libm.key
+    fast_lanes, libm_lanes = fast.lane_variant(), libm.lane_variant()
+    assert fast_lanes.key != libm_lanes.key and libm.lane_variant() is libm_lanes
+
+
 def test_c_refuses_methods_without_a_lane_stepper(pendulum):
     """The C entry point itself returns LCG_UNKNOWN_METHOD for an implicit method's number."""
     lane_system = pendulum.lane_variant()

@@ -130,15 +130,15 @@ class CompiledSystem:
         ``LAGCODEGEN_PORTABLE`` at the first sweep instead)."""
         if self.lane_build is None:
             return None
-        memo = (self.key, self.instruction_set)
-        if memo not in _LANE_VARIANTS:  # found by review: keying the lane source again took 0.6-0.9 ms per sweep
+        # kept on this object (found by review: keying the lane source again took 0.6-0.9 ms per sweep); not
+        # by the module's key, which two lane_trig choices of one scalar module share; the pickle drops it
+        variant = self.__dict__.get("_lane_variant")
+        if variant is None:
             sources, cache_dir, extra_compile_args = self.lane_build
-            _LANE_VARIANTS[memo] = build_module(sources, cache_dir=cache_dir, extra_compile_args=extra_compile_args,
-                                                instruction_set=self.instruction_set)
-        return _LANE_VARIANTS[memo]
-
-
-_LANE_VARIANTS: dict = {}  # (key of a module, its instruction set) -> its lane variant, once per process
+            variant = build_module(sources, cache_dir=cache_dir, extra_compile_args=extra_compile_args,
+                                   instruction_set=self.instruction_set)
+            self.__dict__["_lane_variant"] = variant  # frozen dataclass: as functools.cached_property stores
+        return variant
 
 
 def _restore(key: str, path: str, module_name: str, layout: KernelLayout,
