@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 import numbers
+import reprlib
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 
@@ -113,17 +114,33 @@ def _is_table(inputs) -> bool:
     return all(not isinstance(part, (str, bytes)) and np.ndim(part) >= 1 for part in inputs)
 
 
+def _holds_bool(values) -> bool:
+    """True when a list or tuple (nested) holds a bool: numpy reads [True, 0.0] as the floats [1.0, 0.0]
+    (found 2026-11-27: a constant, a table or rows of inputs so ran with 1.0, where a bool alone is refused)."""
+    stack = [values]
+    while stack:
+        value = stack.pop()
+        if isinstance(value, (bool, np.bool_)):
+            return True
+        if isinstance(value, (list, tuple)):
+            stack.extend(value)
+    return False
+
+
 def _numbers(values, what: str):
-    """``values`` as a float array; a TypeError naming ``what`` for strings, None or objects."""
+    """``values`` as a float array; a TypeError naming ``what`` for strings, bools, None or objects."""
     try:
         raw = np.asarray(values)
         if raw.dtype.kind in "bUSc":
             raise TypeError(f"dtype {raw.dtype}")
+        if isinstance(values, (list, tuple)) and _holds_bool(values):
+            raise TypeError("a bool is not a number")
         if raw.dtype == object and any(v is None for v in raw.ravel()):
             raise TypeError("None is not a number")
         return np.asarray(values, dtype=float)
     except (TypeError, ValueError, OverflowError) as error:
-        raise TypeError(f"input {what}: values must be real numbers, got {values!r} ({error})") from None
+        # reprlib: a million rows of a per-step signal would otherwise all be printed
+        raise TypeError(f"input {what}: values must be real numbers, got {reprlib.repr(values)} ({error})") from None
 
 
 def _finite(values: np.ndarray, names, times=None) -> None:
@@ -347,9 +364,12 @@ class CallableInputs:
             kind = np.asarray(result).dtype.kind
         except (TypeError, ValueError):  # ragged: refused below
             kind = "O"
+        if kind not in "USbc" and isinstance(result, (list, tuple)) and _holds_bool(result):
+            kind = "b"  # [True, 0.0] is a float array to numpy
         if kind in "USbc":  # a string would parse as a number, a complex would lose its imaginary part,
             # a bool is refused as a constant input is (found by review: [True] ran as 1.0)
-            what = type(result).__name__ if np.ndim(result) == 0 else f"{np.asarray(result).dtype} values"
+            what = type(result).__name__ if np.ndim(result) == 0 else \
+                "bool values" if kind == "b" else f"{np.asarray(result).dtype} values"
             return self._fail(Status.INPUT_FAILED, f"the input callable returned {what} at t = {float(t):g}; "
                                                    f"expected {len(self.names)} real number(s) for "
                                                    f"{', '.join(self.names)}")
