@@ -683,15 +683,21 @@ def test_every_accepted_form_of_a_callable_result_drives_as_the_constant_does(os
     assert run.ok and np.array_equal(run.x, constant.x) and np.array_equal(run.inputs, constant.inputs)
 
 
-@pytest.mark.parametrize("result", [[True, 0.0], (0.5, np.bool_(False)), [1, True]])
-def test_a_bool_among_a_controllers_numbers_is_refused(tmp_path, result):
-    """A bool is refused as an input value (as a constant input's is); numpy reads [True, 0.0] as a float
-    array, and it ran as 1.0 (found 2026-11-27, trying the short path for plain results)."""
+@pytest.fixture(scope="module")
+def two_inputs(tmp_path_factory):
+    """m x'' + k x = F + G: two inputs, so that a bool can stand beside a number."""
     x, F, G = me.dynamicsymbols("x F G")
     m, k = sp.symbols("m k", positive=True)
     model = Model("two_inputs", [x], [m, k], kinetic_energy=m * x.diff() ** 2 / 2, potential_energy=k * x ** 2 / 2,
                   generalized_forces={x: F + G}, inputs=[F, G], parameter_values={m: 1.0, k: 4.0})
-    system = compile_model(model, methods=("rk4",), cache_dir=tmp_path)
+    return compile_model(model, methods=("rk4",), cache_dir=tmp_path_factory.mktemp("two_inputs"))
+
+
+@pytest.mark.parametrize("result", [[True, 0.0], (0.5, np.bool_(False)), [1, True]])
+def test_a_bool_among_a_controllers_numbers_is_refused(two_inputs, result):
+    """A bool is refused as an input value (as a constant input's is); numpy reads [True, 0.0] as a float
+    array, and it ran as 1.0 (found 2026-11-27, trying the short path for plain results)."""
+    system = two_inputs
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         run = simulate(system, {"x": 1.0}, t_end=0.01, h=1e-3, inputs=lambda t, x: result)
@@ -700,13 +706,9 @@ def test_a_bool_among_a_controllers_numbers_is_refused(tmp_path, result):
 
 @pytest.mark.parametrize("inputs", [[True, 0.0], (np.array([0.0, 1.0]), [[True, 0.0], [0.0, 0.0]]),
                                     [[0.0, np.bool_(True)]] * 11])
-def test_a_bool_among_an_input_signals_numbers_is_refused(tmp_path, inputs):
+def test_a_bool_among_an_input_signals_numbers_is_refused(two_inputs, inputs):
     """A constant, a table and rows per step: numpy reads [True, 0.0] as floats, and it ran as 1.0
     (found 2026-11-27); a bool alone was refused already."""
-    x, F, G = me.dynamicsymbols("x F G")
-    m, k = sp.symbols("m k", positive=True)
-    model = Model("two_inputs", [x], [m, k], kinetic_energy=m * x.diff() ** 2 / 2, potential_energy=k * x ** 2 / 2,
-                  generalized_forces={x: F + G}, inputs=[F, G], parameter_values={m: 1.0, k: 4.0})
-    system = compile_model(model, methods=("rk4",), cache_dir=tmp_path)
+    system = two_inputs
     with pytest.raises(TypeError, match=r"input F, G: values must be real numbers, got .* \(a bool is not a number\)"):
         simulate(system, {"x": 1.0}, t_end=0.01, h=1e-3, inputs=inputs)
