@@ -255,3 +255,45 @@ def test_negative_products_with_powers_keep_their_denominators(make):
     got = eval(code, {}, dict(values))  # noqa: S307 (arithmetic only)
     want = float(expr.subs({x: 0.7, L: 1.9, y: 0.45}))
     assert got == pytest.approx(want, rel=1e-14), code
+
+
+# --- CPrinter: sums as balanced trees ------------------------------------------------------
+
+a, b, c, d, e, f, g, h = TERMS = sp.symbols("a b c d e f g h", real=True)
+TERM_NAMES = {s: str(s) for s in TERMS}
+
+
+@pytest.mark.parametrize("expr, text", [
+    (a + b, "a + b"),
+    (a - b, "a - b"),
+    (-a - b, "-(a + b)"),
+    (a + b + c, "(a + b) + c"),
+    (a + b + c + d, "(a + b) + (c + d)"),
+    (a - b - c - d, "(a - b) - (c + d)"),
+    (-a + b - c + d, "(b - a) + (d - c)"),
+    (-a - b - c, "-((a + b) + c)"),
+    (a + b + c + d + e + f + g + h, "((a + b) + (c + d)) + ((e + f) + (g + h))"),
+    (a * (b - c - d) + e, "a*((b - c) - d) + e"),
+])
+def test_sums_print_as_balanced_trees(expr, text):
+    """Hand-derived: sympy's order of the terms, paired neighbour by neighbour (a positive and a
+    negative term as one subtraction), so an n-term sum is log2(n) additions deep, not n - 1."""
+    assert CPrinter("double", TERM_NAMES).doprint(expr) == text
+
+
+SUMS = [
+    a + b + c + d + e, -a - b - c - d - e - f - g, a - 2 * b + 3 * c - d / e + f * g - h,
+    -(a + b) ** 2 - c * d + e * (a - b + c - d + e - f), sp.Rational(1, 3) * a - b - sp.Rational(5, 7),
+    -a * b - c * d - e * f - g * h + 1, a * (b - c - d) - e * (f + g + h) - (a - b) / (c + d),
+    -a + 2, 1 - a - b, sp.Float(0.25) * a - b * c,
+]
+
+
+@pytest.mark.parametrize("expr", SUMS)
+def test_balanced_sums_keep_their_value(expr):
+    """The printed C (+, -, *, / and parentheses only) is also Python: its value at a sample point
+    against sympy's evaluation of the expression at 30 digits (independent of the printer)."""
+    point = dict(zip(TERMS, (0.7, -1.3, 2.1, 0.45, -0.9, 1.7, -2.5, 0.33)))
+    text = CPrinter("double", TERM_NAMES).doprint(expr).replace("1.0/", "1/")
+    got = eval(text, {}, {str(s): v for s, v in point.items()})  # noqa: S307 (the printer's own text)
+    assert got == pytest.approx(float(expr.evalf(30, subs=point)), rel=1e-14, abs=1e-14)
