@@ -342,16 +342,16 @@ def test_the_dynamics_kernel_solves_the_dependent_speeds_from_its_own_constraint
     start = source.index("_dynamics(double t")
     body = source[start:source.index("\n}\n", start)]
     assert "_dependent_speeds(" not in body
-    solve, first_reader = body.index("_dense_factor(LU, ipiv"), body.index("= u_dep[0];")
+    solve, first_reader = body.index("/* LU of A_D"), body.index("= u_dep[0];")
     assert solve < first_reader
-    assert body.count("_dense_factor(") == 1 and "_dense_solve(" not in body
-    assert body.index("_dense_substitute(LU, ipiv, gD") > first_reader
+    assert body.count("/* LU of A_D") == 1 and "_dense_solve(" not in body and "_dense_factor(" not in body
+    assert body.index("double b_0 = gD[0]") > first_reader
     for name in eom.u[eom.n_u - eom.n_dependent:]:  # no temporary reads a dependent speed before the solve
         assert f"*{name}" not in body[:solve] and f"{name}*" not in body[:solve]
 
 
 @pytest.mark.parametrize("name", ("AD_dep", "scale_dep", "u_dep", "LU", "ipiv", "X", "gD", "Mr_1_0", "MC_2_0",
-                                  "rest_2", "Fr_1", "D_0"))
+                                  "rest_2", "Fr_1", "D_0", "LU_0_0", "pivot_0", "largest_0", "b_0", "top"))
 def test_a_symbol_named_like_the_kernels_own_locals_is_renamed(sleighs, tmp_path, name):
     """The inline solve's locals (u_dep, LU, the reduced M's Mr_i_j, ...) are reserved: a sleigh whose lever arm
     is called so compiles, and its rhs equals the sleigh's with the usual name (second route: the

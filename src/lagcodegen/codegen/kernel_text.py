@@ -32,17 +32,17 @@ RESERVED = {"t", "x", "p", "out", "M", "F", "ud", "qd", "xdot", "B", "J", "c", "
 DRIVEN_RESERVED = {"r", "dr", "rs", "r0", "r1", "y", "Fx", "Fr", "Jr", "Br", "hold", "inputs", "context"}
 #: ... and those of the functions of a model whose dependent speeds are eliminated
 DEPENDENT_RESERVED = {"u_dep", "dep_status", "AD", "b", "Mfull", "Fvec", "gamma", "AD_dep", "scale_dep", "LU",
-                      "ipiv", "X", "gD"}
+                      "ipiv", "X", "gD", "top"}
 
 
 def _reduced_locals(n: int) -> set:
-    """Locals of the eliminated dynamics' reduction to the independent speeds (M C, C^T M C, the
-    reduced forcing)."""
+    """Locals of the eliminated dynamics' reduction to the independent speeds (A_D's unrolled LU,
+    M C, C^T M C, the reduced forcing)."""
     names = set()
     for j in range(n):
-        names |= {f"rest_{j}", f"Fr_{j}"}
+        names |= {f"rest_{j}", f"Fr_{j}", f"largest_{j}", f"b_{j}"}
         for k in range(n):
-            names |= {f"MC_{j}_{k}", f"Mr_{j}_{k}"}
+            names |= {f"MC_{j}_{k}", f"Mr_{j}_{k}", f"LU_{j}_{k}"}
     return names
 
 

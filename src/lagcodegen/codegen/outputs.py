@@ -22,6 +22,7 @@ from ..symbolic.trees import PIVOT_ROUNDING
 from .csyntax import PROJECTION_STALL, UNIT_ROUNDOFF, comment_text, literal, record
 from .kernel_text import KernelWriter, kernel_parts, results
 from .ldlt import ldlt_factor_lines, ldlt_substitution_lines
+from .lu import UNROLLED_LU_MAX, lu_factor_lines, lu_substitute_lines
 from .steppers import hot_dynamics
 
 
@@ -946,11 +947,14 @@ def _eliminated_head_lines(w: KernelWriter, kernel, M: dict, mass_lines: list) -
     zero = literal(0, real)
     width = p + 1
     A = results(kernel, "A")
-    lines = [f"{real} LU[{m * m}], X[{m * width}], u_dep[{m}], det, scale = {zero};", f"int ipiv[{m}];",
-             "/* A_D [C_D | u_dep] = [-A_I | -(A_I u_I + b)], A_D factored once (its LU serves the accelerations",
-             " * too); the rank test's scale is the largest |entry| of the independent columns of A */"]
-    lines += [f"LU[{i * m + j}] = {w.expr(A.get((i, p + j), 0), f'A_D[{i}][{j}]')};"
-              for i in range(m) for j in range(m)]
+    unrolled = m <= UNROLLED_LU_MAX
+    lines = [f"{real} X[{m * width}], u_dep[{m}], det, scale = {zero};"]
+    if not unrolled:
+        lines += [f"{real} LU[{m * m}];", f"int ipiv[{m}];"]
+    lines += ["/* A_D [C_D | u_dep] = [-A_I | -(A_I u_I + b)], A_D factored once (its LU serves the accelerations",
+              " * too); the rank test's scale is the largest |entry| of the independent columns of A */"]
+    lines += [(f"{real} LU_{i}_{j} = " if unrolled else f"LU[{i * m + j}] = ")
+              + f"{w.expr(A.get((i, p + j), 0), f'A_D[{i}][{j}]')};" for i in range(m) for j in range(m)]
     for i in range(m):
         for k in range(p):
             entry = A.get((i, k), 0)
@@ -965,8 +969,13 @@ def _eliminated_head_lines(w: KernelWriter, kernel, M: dict, mass_lines: list) -
             if entry != 0:
                 value = w.expr(entry, f'A[{i}][{k}]')  # a comparison, not fmax: gcc calls libm's fmax
                 lines.append(f"if ({fabs}({value}) > scale) scale = {fabs}({value});")
-    lines += [f"if (!{prefix}_dense_factor(LU, ipiv, {m}, scale, &det)) return LCG_SINGULAR_CONSTRAINTS;",
-              f"{prefix}_dense_substitute(LU, ipiv, X, {m}, {width});"]
+    if unrolled:
+        lines += lu_factor_lines(m, real, "LCG_SINGULAR_CONSTRAINTS", what="A_D")
+        for c in range(width):
+            lines += lu_substitute_lines(m, real, [f"X[{i * width + c}]" for i in range(m)])
+    else:
+        lines += [f"if (!{prefix}_dense_factor(LU, ipiv, {m}, scale, &det)) return LCG_SINGULAR_CONSTRAINTS;",
+                  f"{prefix}_dense_substitute(LU, ipiv, X, {m}, {width});"]
     lines += [f"u_dep[{i}] = X[{i * width + p}];" for i in range(m)]
     lines += mass_lines
 
@@ -1007,7 +1016,10 @@ def _eliminated_tail_lines(w: KernelWriter, kernel, M: dict, LD: set) -> list:
         return [f"(void){name};" for name in unread] + ["(void)ud;", "return LCG_OK;"]
     lines = [f"{real} gD[{m}];", "/* g_D = A_D^-1 gamma: the dependent accelerations' part that ud_I does not give */"]
     lines += [f"gD[{i}] = {w.expr(e, f'gamma[{i}]')};" for (i, _), e in results(kernel, "C").items()]
-    lines.append(f"{prefix}_dense_substitute(LU, ipiv, gD, {m}, 1);")
+    if m <= UNROLLED_LU_MAX:
+        lines += lu_substitute_lines(m, real, [f"gD[{i}]" for i in range(m)])
+    else:
+        lines.append(f"{prefix}_dense_substitute(LU, ipiv, gD, {m}, 1);")
     lines.append("/* the reduced forcing C^T (F - M g) */")
     for i in range(n):
         terms = [f"F_{i}"]
