@@ -179,6 +179,27 @@ def test_the_eliminated_disc_keeps_three_speeds(discs):
     assert layout.n_state == 8 and discs["multipliers"].layout.n_state == 10
 
 
+def test_the_looped_lu_beyond_the_unrolled_size_gives_the_same_bits(discs, tmp_path, monkeypatch):
+    """A_D larger than codegen.lu.UNROLLED_LU_MAX keeps the looped dense_factor / dense_substitute;
+    with the limit lowered to 0 the disc's 2 x 2 A_D takes that path. Second route: the same
+    operations in the same order, so the rhs, the simulated state and the dependent speeds agree
+    to the last bit with the unrolled kernel's."""
+    import lagcodegen.codegen.outputs as outputs
+
+    monkeypatch.setattr(outputs, "UNROLLED_LU_MAX", 0)
+    x, y = rolling_disc().coordinates[:2]
+    looped = compile_model(rolling_disc(dependent_speeds=[x, y]), methods=("rk4",), cache_dir=tmp_path)
+    assert "_dense_factor(LU, ipiv" in looped.sources.source
+    assert "_dense_factor(LU, ipiv" not in discs["elimination"].sources.source
+    rng = np.random.default_rng(3)
+    for state in rng.uniform(-1.0, 1.0, (5, 8)) + [0, 0, 0, 0.4, 0, 0, 0, 0]:  # theta near 0.4: off the singular set
+        np.testing.assert_array_equal(make_rhs(looped)(0.0, state), make_rhs(discs["elimination"])(0.0, state))
+        np.testing.assert_array_equal(dependent_speeds(looped, state), dependent_speeds(discs["elimination"], state))
+    start = [0.0, 0.0, 0.0, 0.1, 0.0, 0.2, 0.0, 8.0]
+    np.testing.assert_array_equal(simulate(looped, start, t_end=0.5, h=1e-3).x,
+                                  simulate(discs["elimination"], start, t_end=0.5, h=1e-3).x)
+
+
 def test_only_the_multipliers_take_baumgarte_parameters(discs):
     # found by review: an FMU of an eliminated model offered baumgarte_alpha and _beta, which did nothing
     # (the dependent speeds are solved from the constraints, so w = A u + b = 0 at every evaluation)
