@@ -22,22 +22,16 @@ COLUMNS = 3
 
 
 def _looped_helpers(real: str) -> str:
-    """The looped helpers as a model with dependent speeds carries them (a Chaplygin sleigh)."""
-    import sympy as sp
+    """The looped helpers as a model with dependent speeds carries them (the Chaplygin sleigh, y'
+    dependent)."""
     import sympy.physics.mechanics as me
+    from test_chaplygin_sleigh import sleigh
 
-    from lagcodegen import Model, derive_equations
+    from lagcodegen import derive_equations
     from lagcodegen.codegen.reduce import reduce_expressions
     from lagcodegen.codegen.render import render_sources
 
-    t = me.dynamicsymbols._t
-    x, y, theta = me.dynamicsymbols("x y theta")
-    m, inertia, a = sp.symbols("m I a", positive=True)
-    xc, yc = x + a * sp.cos(theta), y + a * sp.sin(theta)
-    T = m * (xc.diff(t) ** 2 + yc.diff(t) ** 2) / 2 + inertia * theta.diff(t) ** 2 / 2
-    blade = -x.diff(t) * sp.sin(theta) + y.diff(t) * sp.cos(theta)
-    eom = derive_equations(Model("sleigh", [x, y, theta], [m, inertia, a], kinetic_energy=T,
-                                 motion_constraints=[blade], dependent_speeds=[y]))
+    eom = derive_equations(sleigh(dependent_speeds=[me.dynamicsymbols("y")]))
     source = render_sources(reduce_expressions(eom, ["rhs", "dependent_speeds"], {}), precision=real,
                             methods=("rk4",)).source
     functions = []
