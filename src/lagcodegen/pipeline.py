@@ -71,9 +71,9 @@ def compile_model(model: Model | EquationsOfMotion, *, outputs=None, fixed: Mapp
     methods : str or sequence of str
         Integration schemes to compile in (`schemes.SCHEMES`; one name: that scheme alone).
     precision : {"double", "float"}
-    trig : {"libm", "inline"}
-        How sine and cosine are computed (`render.render_sources`): libm calls (default) or the
-        inline polynomials of ``templates/trig.c.j2``.
+    trig : {"inline", "libm"}
+        How sine and cosine are computed (`render.render_sources`): the inline polynomials of
+        ``templates/trig.c.j2`` (default) or libm calls.
     lanes : int
         Members per vector group of the lane sweep kernel (``sweep`` uses it for explicit methods
         of unconstrained models); 0: none. Its sources are rendered here, but compiled only when a

@@ -276,8 +276,8 @@ def make_parser() -> Parser:
     emit.add_argument("model", help="example name or model file")
     emit.add_argument("--out", default=".", help="output directory, created if missing (default: .)")
     emit.add_argument("--precision", choices=("double", "float"), default="double")
-    emit.add_argument("--trig", choices=("libm", "inline"), default="libm",
-                      help="sin/cos as libm calls (default) or inline polynomials (below 1 ulp, templates/trig.c.j2)")
+    emit.add_argument("--trig", choices=("libm", "inline"), default="inline",
+                      help="sin/cos as inline polynomials (default; below 1 ulp, templates/trig.c.j2) or libm calls")
     emit.add_argument("--outputs", help="comma-separated subset of mass_matrix,forcing,accel,rhs,energy,"
                       "points,jacobian,momentum (default: all that apply)")
     emit.add_argument("--methods", help="comma-separated integrators to include as step functions, "

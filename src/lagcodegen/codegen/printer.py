@@ -176,9 +176,10 @@ _MUL_POW_MAX_COMPOSITE = 3  # composite bases are repeated in the text; keep the
 
 TRIG_MODES = ("inline", "libm")
 """How sin and cos print: the inline functions of ``templates/trig.c.j2``, or ``<math.h>`` calls."""
-DEFAULT_TRIG = "libm"
-"""Measured (benchmarks/README.md): in the latency-bound RK4 step of the double pendulum glibc's
-sincos is as fast as the inline forms, and the libm fallback beyond the limit costs registers."""
+DEFAULT_TRIG = "inline"
+"""The kernels' default (render_sources, compile_model, the CLI): the inline forms took 4-14 % less
+time per RK4 step than glibc's sincos in every kernel measured in session 20 (docs/benchmarks.txt).
+`CPrinter` alone prints libm calls unless told otherwise: it cannot define the inline functions."""
 
 _LOCAL_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*(\[[0-9]+\])?")
 _NUMBER = re.compile(r"[0-9]+(\.[0-9]*)?([eE][+-]?[0-9]+)?F?")
@@ -228,8 +229,9 @@ class CPrinter(C99CodePrinter):
         followed by a constant index.
     trig : {"inline", "libm"}
         ``"inline"`` prints ``sin``/``cos`` as ``lcg_sin``/``lcg_cos`` (float: ``lcg_sinf``,
-        ``lcg_cosf``), defined by ``templates/trig.c.j2``; ``"libm"`` as the ``<math.h>`` calls.
-        ``printed_trig`` tells afterwards whether any sine or cosine was printed (in either mode).
+        ``lcg_cosf``), defined by ``templates/trig.c.j2``; ``"libm"`` (the printer's default: its
+        text must compile without the template) as the ``<math.h>`` calls. ``printed_trig`` tells
+        afterwards whether any sine or cosine was printed (in either mode).
 
     Rules
     -----
@@ -246,7 +248,7 @@ class CPrinter(C99CodePrinter):
 
     _default_settings = dict(C99CodePrinter._default_settings, strict=True)
 
-    def __init__(self, precision: str = "double", names: dict | None = None, trig: str = DEFAULT_TRIG):
+    def __init__(self, precision: str = "double", names: dict | None = None, trig: str = "libm"):
         if precision not in ("double", "float"):
             raise ValueError(f"precision must be 'double' or 'float', got {precision!r}")
         if trig not in TRIG_MODES:

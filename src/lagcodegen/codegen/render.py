@@ -163,9 +163,10 @@ def render_sources(system: ReducedSystem, precision: str = "double", model_name:
     methods : sequence of str
         Integration schemes (`schemes.SCHEMES`) to compile as ``step_<name>`` functions and into
         the ``simulate`` driver; needs the ``rhs`` output, implicit ones also ``jacobian``.
-    trig : {"libm", "inline"}
-        ``"libm"`` (default): plain ``sin``/``cos`` calls; ``"inline"``: the inline functions of
-        ``templates/trig.c.j2`` (below 1 ulp, sin and cos of one angle share the reduction).
+    trig : {"inline", "libm"}
+        ``"inline"`` (default, `printer.DEFAULT_TRIG`): the inline functions of
+        ``templates/trig.c.j2`` (below 1 ulp, sin and cos of one angle share the reduction);
+        ``"libm"``: plain ``sin``/``cos`` calls.
         The source defines only the functions of that template it calls.
     lanes : int
         0: no lane kernel. Else also ``<prefix>_sweep_lanes``, which runs ``lanes`` members side by
