@@ -79,8 +79,8 @@ def compile_model(model: Model | EquationsOfMotion, *, outputs=None, fixed: Mapp
         of unconstrained models); 0: none. Its sources are rendered here, but compiled only when a
         sweep first needs them (`CompiledSystem.lane_variant`): it doubles the compile time.
     lane_trig : {"fast", "libm"}
-        sin/cos in the lane kernel: vectorizable polynomials, or libm (bitwise equal to the
-        scalar sweep of a ``trig="libm"`` kernel, slower); see `render_sources`.
+        sin/cos in the lane kernel: vectorizable polynomials, or the scalar kernel's own (``trig``;
+        bitwise equal to its scalar sweep, slower); see `render_sources`.
 
     Warns
     -----

@@ -73,8 +73,11 @@ def lanes_apply(system, methods) -> bool:
         not system.u_dependent and "rhs" in system.outputs and not system.recursive
 
 
-def lane_context(system, names, real: str, methods: list, lanes: int, trig: str = "fast") -> dict:
-    """Template context of ``templates/lanes.c.j2``; ``{"has_lanes": False}`` when lanes is 0."""
+def lane_context(system, names, real: str, methods: list, lanes: int, trig: str = "fast",
+                 scalar_trig: str = "libm") -> dict:
+    """Template context of ``templates/lanes.c.j2``; ``{"has_lanes": False}`` when lanes is 0.
+    ``trig`` "fast": the branch-free lane forms; "libm": sin and cos as the scalar kernel prints
+    them (``scalar_trig``: libm calls or the inline forms), so the lanes equal its sweep bit for bit."""
     from ..integrators.schemes import get_scheme
 
     if not lanes:
@@ -86,7 +89,8 @@ def lane_context(system, names, real: str, methods: list, lanes: int, trig: str 
     if not lanes_apply(system, methods):
         return {"has_lanes": False}
     n, N, prefix = len(system.u), len(system.q) + len(system.u), names.prefix  # n: speeds, the size of M
-    printer = LanePrinter(real, names.symbols, prefix) if trig == "fast" else CPrinter(real, names.symbols)
+    printer = LanePrinter(real, names.symbols, prefix) if trig == "fast" else \
+        CPrinter(real, names.symbols, trig=scalar_trig)
     steppers = []
     for number, name in enumerate(dict.fromkeys(methods)):
         scheme = get_scheme(name)

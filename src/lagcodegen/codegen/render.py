@@ -172,8 +172,9 @@ def render_sources(system: ReducedSystem, precision: str = "double", model_name:
         0: no lane kernel. Else also ``<prefix>_sweep_lanes``, which runs ``lanes`` members side by
         side for the explicit methods (see `lane_kernel.py`); host use, it is never in ``generated/``.
     lane_trig : {"fast", "libm"}
-        sin/cos inside the lane loops: branch-free polynomials (vectorizable), or libm's (then the
-        lane kernel equals the scalar sweep of a ``trig="libm"`` kernel bit for bit, for tests).
+        sin/cos inside the lane loops: branch-free polynomials (vectorizable), or the scalar
+        kernel's own (``trig``: libm calls or the inline forms; then the lane kernel equals the
+        scalar sweep bit for bit, for tests; the name is from when the scalar default was libm).
     """
     if precision not in PRECISIONS:
         raise EmitError(f"precision must be one of {PRECISIONS}, got {precision!r}")
@@ -189,7 +190,7 @@ def render_sources(system: ReducedSystem, precision: str = "double", model_name:
     functions += [f for f in written if f is not None]
     has_dynamics = any(OUTPUTS[out].kernel == "dynamics" for out in system.outputs)
     steppers = stepper_context(system, names, real, list(methods))
-    steppers |= lane_context(system, names, real, list(methods), lanes, lane_trig)
+    steppers |= lane_context(system, names, real, list(methods), lanes, lane_trig, scalar_trig=trig)
     stepper_prototypes = [f for out in system.outputs for f in OUTPUTS[out].template_functions(writer)]
     stepper_prototypes += steppers.pop("exported")
     if steppers["has_lanes"]:
