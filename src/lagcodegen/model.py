@@ -26,6 +26,7 @@ from sympy.core.function import AppliedUndef
 
 from .symbolic.grouping import components
 from .tree import TreeError, checked_tree, three_entries
+from .walk import atoms_of, distinct_nodes, free_symbols_of
 
 TIME = me.dynamicsymbols._t
 
@@ -69,8 +70,13 @@ def _function_assumptions(f) -> dict:
 
 
 def _dynamic_functions(expr: sp.Basic) -> set:
-    """Applied undefined functions (q(t), x(t), ...) inside ``expr``."""
-    return {f for f in expr.atoms(AppliedUndef)}
+    """Applied undefined functions (q(t), x(t), ...) inside ``expr`` (a matrix: its entries)."""
+    return atoms_of(_entries(expr), AppliedUndef)
+
+
+def _entries(expr) -> list:
+    """A matrix's entries, or [expr]: what the walks of `walk` take."""
+    return list(expr) if isinstance(expr, sp.MatrixBase) else [expr]
 
 
 @dataclass(frozen=True)
@@ -662,9 +668,9 @@ def check_well_defined(what: str, expr: sp.Basic) -> None:
     for atom, label in _UNDEFINED_ATOMS:
         if expr == atom:
             raise ModelError(f"{what} is {label} (a nan or infinite value folds the whole expression)")
-    # one walk over the tree (a sympy model's forcing is large, and each has() or atoms() is a walk)
+    # one walk over the distinct nodes (a sympy model's forcing is large, and each has() or atoms() is a walk)
     undefined, accelerations, powers, functions = set(), set(), set(), set()
-    for node in sp.preorder_traversal(expr):
+    for node in distinct_nodes([expr]):
         if node in _UNDEFINED_LABELS:
             undefined.add(node)
         elif isinstance(node, sp.Derivative):
@@ -759,7 +765,7 @@ def check_declared(exprs, parameters, coordinates, extra=()) -> None:
     for what, expr in exprs:
         if expr is None:
             continue
-        check_symbols_declared(what, expr.free_symbols - allowed, parameters)
+        check_symbols_declared(what, free_symbols_of(_entries(expr)) - allowed, parameters)
         unknown = sorted(_dynamic_functions(expr) - set(coordinates), key=str)
         if unknown:
             raise ModelError(f"{what} uses functions of time that are not coordinates: "

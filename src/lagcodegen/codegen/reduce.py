@@ -26,6 +26,7 @@ except ImportError:  # pragma: no cover
     _coeff_isneg = None
 
 from ..symbolic.derive import EquationsOfMotion
+from ..walk import free_symbols_of
 from .outputs import DEFAULT_OUTPUTS, KERNEL_ROWS, OUTPUTS, KernelError, checked_outputs
 
 
@@ -409,7 +410,7 @@ def _without_copies(replacements: list, results: list) -> tuple:
 
 def _numbered(replacements: list, results: list, exprs: list) -> tuple:
     """The temporaries renamed tmp0, tmp1, ... in evaluation order (clear of the inputs' names)."""
-    inputs = set().union(*(sp.sympify(e).free_symbols for e in exprs)) if exprs else set()
+    inputs = free_symbols_of(sp.sympify(e) for e in exprs)
     names = sp.numbered_symbols("tmp", exclude=inputs)
     renamed = {symbol: next(names) for symbol, _ in replacements}
     return ([(renamed[symbol], expr.xreplace(renamed)) for symbol, expr in replacements],
@@ -499,6 +500,14 @@ def _count(a, memo: dict) -> int:
     return known
 
 
+def _fraction(product):
+    """sympy's fraction(product) of a Mul; (product, 1) without rebuilding it when no factor is a
+    power, an exp or a non-integer rational (fraction's Mul(*factors) took most of the counting)."""
+    if any(f.is_Pow or isinstance(f, sp.exp) or (f.is_Rational and not f.is_Integer) for f in product.args):
+        return fraction(product)
+    return product, sp.S.One
+
+
 def _count_node(a, memo: dict) -> int:
     """The operations sympy.count_ops (visual=False) charges for node ``a`` and what it pushes."""
     ops = 0
@@ -508,7 +517,7 @@ def _count_node(a, memo: dict) -> int:
         if _coeff_isneg(a):
             ops += 1  # NEG
             a = a.as_two_terms()[1] if a.args[0] is sp.S.NegativeOne else -a
-        n, d = fraction(a)
+        n, d = _fraction(a)
         if n.is_Integer:
             return ops + 1 + (1 if n < 0 else 0) + _count(d, memo)  # DIV (and NEG)
         if d is not sp.S.One:

@@ -21,6 +21,7 @@ import numpy as np
 import sympy as sp
 
 from ..model import ROUTE_BODIES, ROUTE_ENERGIES, ROUTE_SYMPY, ROUTE_TREE, Model, ModelError
+from ..walk import atoms_of
 from .bodies import derive_from_bodies
 from .energies import derive_from_energies
 from .equations import EquationsOfMotion
@@ -82,12 +83,12 @@ def check_derived(model: Model, eom: EquationsOfMotion) -> None:
         forces += [(f"the recursive kernel's term {symbol}", expr) for symbol, expr in eom.tree.assignments]
     for what, force in forces:
         # the printer named only F[i] and a CSE temporary (found by review)
-        deltas = sorted(map(str, sp.sympify(force).atoms(sp.DiracDelta)))
+        deltas = sorted(map(str, atoms_of([sp.sympify(force)], sp.DiracDelta)))
         if deltas:
             raise ModelError(f"model {model.name!r}: {what} holds {deltas[0]}, the derivative of a step in the "
                              "potential or kinetic energy, the dissipation or a force (Heaviside, sign or Abs of "
                              "a coordinate); its impulse cannot be integrated: write it without the step")
-        derivatives = sorted(map(str, sp.sympify(force).atoms(sp.Derivative)))
+        derivatives = sorted(map(str, atoms_of([sp.sympify(force)], sp.Derivative)))
         if derivatives:  # floor, ceiling, Mod of a coordinate: sympy leaves their derivative unevaluated
             raise ModelError(f"model {model.name!r}: {what} holds {derivatives[0]}, which sympy cannot evaluate "
                              "(floor, ceiling or Mod of a coordinate in an energy, the dissipation or a force): "

@@ -402,13 +402,15 @@ def assemble(model, coords, speeds, q, u, M, F, K, T, V, to_plain, inputs_checke
         w = sp.Matrix([to_plain(c, f"motion constraint {i}") for i, c in enumerate(motion)])
         check_declared([(f"motion constraint {i}", c) for i, c in enumerate(w)], model.parameters, (),
                        extra=q + u + r)
-        for i, wi in enumerate(w):
-            nonlinear = [s for s in u if wi.diff(s).has(*u)]
+        # the velocity constraints' A, taken once: motion_terms reuses it
+        A_w = w.jacobian(sp.Matrix(u)) if w.rows else None
+        for i in range(w.rows):
+            nonlinear = [s for j, s in enumerate(u) if A_w[i, j].has(*u)]
             if nonlinear:
                 raise ModelError(f"motion constraint {i} ({motion[i]}) is not linear in the speeds (in "
                                  f"{speeds[list(u).index(nonlinear[0])]}); velocity constraints must read "
                                  "a(q, t) . qd + b(q, t)")
-            if not any(wi.diff(s) != 0 for s in u):
+            if not any(A_w[i, j] != 0 for j in range(len(u))):
                 raise ModelError(f"motion constraint {i} ({motion[i]}) involves no speed: a constraint on the "
                                  "positions belongs in constraints=")
         blocks = []
@@ -417,7 +419,7 @@ def assemble(model, coords, speeds, q, u, M, F, K, T, V, to_plain, inputs_checke
         if w.rows:
             rates = None if motion_rates is None else \
                 sp.Matrix(to_plain(sp.Matrix(motion_rates), "acceleration constraints"))
-            blocks.append(motion_terms(w, q, u, TIME, K, rates=rates))
+            blocks.append(motion_terms(w, q, u, TIME, K, rates=rates, A=A_w))
         stack = lambda key: sp.ImmutableMatrix(sp.Matrix.vstack(*[sp.Matrix(b[key]) for b in blocks]))  # noqa: E731
         _check_smooth(model, [*phi, *w], stack("gamma"), phi.rows)
         constrained = {"constraints": stack("phi"), "constraint_jacobian": stack("A"),

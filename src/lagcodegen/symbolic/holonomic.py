@@ -33,14 +33,15 @@ def holonomic_terms(phi: sp.Matrix, q, u, t) -> dict:
             "gamma": sp.ImmutableMatrix(gamma)}
 
 
-def motion_terms(w: sp.Matrix, q, u, t, qd=None, rates=None) -> dict:
+def motion_terms(w: sp.Matrix, q, u, t, qd=None, rates=None, A=None) -> dict:
     """The rows of velocity constraints w = A(q, t) u + b(q, t) = 0 in the layout of
     `holonomic_terms`: no position-level phi (0), A = dw/du, b in the place of dphi/dt, and
     gamma = -(w_q qd + w_t) - 2 alpha w (Baumgarte's velocity term; no position term), with
     qd = K(q, u, t) the kinematic equations (``qd``, default u). ``rates``, when given, is
-    w_q qd + w_t already formed (Kane's ``f_dnh``: sympy differentiated its constraints itself)."""
+    w_q qd + w_t already formed (Kane's ``f_dnh``: sympy differentiated its constraints itself);
+    ``A``, when given, is dw/du already formed."""
     q_vec, u_vec = sp.Matrix(q), sp.Matrix(u)
-    A = w.jacobian(u_vec)
+    A = w.jacobian(u_vec) if A is None else A
     b = w.xreplace(dict.fromkeys(u, 0))
     if rates is None:
         rates = w.jacobian(q_vec) * (u_vec if qd is None else sp.Matrix(qd)) + w.diff(t)

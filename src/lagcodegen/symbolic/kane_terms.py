@@ -36,6 +36,7 @@ import sympy as sp
 import sympy.physics.mechanics as me
 
 from ..model import ModelError
+from ..walk import free_symbols_of
 
 __all__ = ["KaneTerms", "kane_terms", "dyadic_frames"]
 
@@ -71,7 +72,7 @@ def kane_terms(method: me.KanesMethod, kindiff: dict, to_plain, motion=(), input
         return None
     if known is not None:
         for matrix in (terms.mass_matrix, terms.forcing, terms.motion_rates):
-            if matrix.free_symbols - set(known):
+            if free_symbols_of(matrix) - set(known):
                 return None
     return terms
 
