@@ -119,6 +119,35 @@ def test_sources_key_follows_every_field_of_the_equations():
         assert pipeline._sources_key(dataclasses.replace(eom, **change), *args) != key, change
 
 
+def test_equations_digest_follows_values_not_sharing_or_types():
+    """The digest is a Merkle tree over the expressions (`pipeline._NodeDigests`). Equal values
+    digest alike however their subexpressions are shared; values that differ only in type
+    (Float(1.0) == Integer(1) in sympy, but they print differently) or in a symbol's assumptions
+    digest apart; an expression deeper than the recursion limit digests. Expected relations by
+    construction of the inputs (written here), not by the digest."""
+    import sys
+
+    import sympy as sp
+
+    x, y = sp.symbols("x y")
+    shared = sp.sin(x) * y
+    sp.core.cache.clear_cache()  # else sympy's cache hands back the same objects
+    alone = sp.Mul(sp.sin(sp.Symbol("x")), sp.Symbol("y"))
+    assert alone is not shared and alone.args[0] is not shared.args[0]
+    digest = pipeline._values_digest
+    assert digest(((shared + 1, shared ** 2),)) == digest(((alone + 1, alone ** 2),))
+    assert digest((x * sp.Float(1.0) + y,)) != digest((x * 1 + y,))
+    assert digest((sp.Float(2.0) * x,)) != digest((2 * x,))
+    assert digest((sp.Symbol("x", positive=True) + y,)) != digest((x + y,))
+    assert digest((x - y,)) != digest((y - x,))
+    assert digest((sp.Dummy("d"),)) != digest((sp.Dummy("d"),))  # as pickled: each Dummy is its own
+    f = sp.Function("f")
+    deep = x
+    for _ in range(sys.getrecursionlimit() + 100):
+        deep = f(deep)
+    assert digest((deep,)) == digest((deep,)) != digest((f(deep),))
+
+
 def test_sources_key_is_the_same_in_every_process(tmp_path):
     import subprocess
     import sys
