@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 import sympy as sp
 
+from ..symbolic.differentiation import derivative
 from ..symbolic.equations import EquationsOfMotion
 from ..symbolic.trees import PIVOT_ROUNDING
 from .csyntax import PROJECTION_STALL, UNIT_ROUNDOFF, comment_text, literal, record
@@ -101,9 +102,9 @@ def _reaction_rows(eom: EquationsOfMotion, a) -> list:
 def _configuration_rows(eom: EquationsOfMotion) -> list:
     """("H", i, 0) = f_i(q, t), Kane's configuration constraints, and ("HJ", i, j) = df_i/dq_d(j)
     for the dependent coordinates d: the Newton steps of the projection."""
-    f, q, dependent = eom.configuration, eom.q, eom.dependent_coordinates
+    f, q, dependent, memo = eom.configuration, eom.q, eom.dependent_coordinates, {}
     return [(("H", i, 0), f[i]) for i in range(f.rows)] + \
-        [(("HJ", i, j), f[i].diff(q[d])) for i in range(f.rows) for j, d in enumerate(dependent)]
+        [(("HJ", i, j), derivative(f[i], q[d], memo)) for i in range(f.rows) for j, d in enumerate(dependent)]
 
 
 def _jacobian_rows(eom: EquationsOfMotion, a) -> list:
@@ -117,12 +118,13 @@ def _jacobian_rows(eom: EquationsOfMotion, a) -> list:
     x = list(eom.q) + list(eom.u)
     G = [sp.Add(*[eom.mass_matrix[j, k] * a[k] for k in range(n_u) if eom.mass_matrix[j, k] != 0]) - eom.forcing[j]
          for j in range(n_u)]
-    rows = [(("G", j, c), _classical(G[j].diff(xc))) for j in range(n_u) for c, xc in enumerate(x)]
-    rows += [(("GR", j, c), _classical(G[j].diff(rc))) for j in range(n_u) for c, rc in enumerate(eom.inputs)]
+    memo: dict = {}
+    d = lambda expr, symbol: _classical(derivative(expr, symbol, memo))  # noqa: E731
+    rows = [(("G", j, c), d(G[j], xc)) for j in range(n_u) for c, xc in enumerate(x)]
+    rows += [(("GR", j, c), d(G[j], rc)) for j in range(n_u) for c, rc in enumerate(eom.inputs)]
     if list(eom.kinematics) != list(eom.u):
-        rows += [(("DK", j, c), _classical(eom.kinematics[j].diff(xc))) for j in range(n_q) for c, xc in enumerate(x)]
-        rows += [(("DKR", j, c), _classical(eom.kinematics[j].diff(rc)))
-                 for j in range(n_q) for c, rc in enumerate(eom.inputs)]
+        rows += [(("DK", j, c), d(eom.kinematics[j], xc)) for j in range(n_q) for c, xc in enumerate(x)]
+        rows += [(("DKR", j, c), d(eom.kinematics[j], rc)) for j in range(n_q) for c, rc in enumerate(eom.inputs)]
     return _mass_rows(eom) + rows
 
 

@@ -21,6 +21,7 @@ from ..model import (
     check_symbols_declared,
     input_name,
 )
+from .differentiation import jacobian
 from .grouping import components
 from .holonomic import BAUMGARTE_ALPHA, BAUMGARTE_BETA, holonomic_terms, motion_terms
 
@@ -403,7 +404,7 @@ def assemble(model, coords, speeds, q, u, M, F, K, T, V, to_plain, inputs_checke
         check_declared([(f"motion constraint {i}", c) for i, c in enumerate(w)], model.parameters, (),
                        extra=q + u + r)
         # the velocity constraints' A, taken once: motion_terms reuses it
-        A_w = w.jacobian(sp.Matrix(u)) if w.rows else None
+        A_w = jacobian(w, u) if w.rows else None
         for i in range(w.rows):
             nonlinear = [s for j, s in enumerate(u) if A_w[i, j].has(*u)]
             if nonlinear:

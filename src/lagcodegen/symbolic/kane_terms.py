@@ -37,6 +37,7 @@ import sympy.physics.mechanics as me
 
 from ..model import ModelError
 from ..walk import free_symbols_of
+from .differentiation import derivative
 
 __all__ = ["KaneTerms", "kane_terms", "dyadic_frames"]
 
@@ -240,6 +241,7 @@ class _Formulation:
         qd_symbols = [sp.Dummy(f"{c}_rate") for c in q]
         seeds = dict(zip(q, qd_symbols)) | {t: sp.S.One}
         rates: dict = {}  # assigned symbol -> symbol of its rate (absent: zero)
+        derivatives: dict = {}  # derivative's memo
         rate_assignments = []
 
         def rate(expr):
@@ -247,7 +249,7 @@ class _Formulation:
             for s in expr.free_symbols:
                 seed = seeds.get(s, rates.get(s))
                 if seed is not None:
-                    terms.append(expr.diff(s) * seed)
+                    terms.append(derivative(expr, s, derivatives) * seed)
             return sp.Add(*terms)
 
         for symbol, expr in assignments:
@@ -262,11 +264,11 @@ class _Formulation:
             terms = []
             for s in expr.free_symbols:
                 if s == speed:
-                    terms.append(expr.diff(s))
+                    terms.append(derivative(expr, s, derivatives))
                 elif s in definitions:
                     inner = partial_of(s, speed)
                     if inner != 0:
-                        terms.append(expr.diff(s) * inner)
+                        terms.append(derivative(expr, s, derivatives) * inner)
             return sp.Add(*terms)
 
         def partial_of(symbol, speed):
