@@ -5,7 +5,10 @@ enters and asks assumptions on the way; forming the Whipple bicycle's equations 
 calls and 0.62 s. `derivative` applies the same rules to Add, Mul, Pow, sin and cos (the
 product rule term by term, as sympy's Mul does; sympy's own Pow and Function formulas) and
 memoizes them, so its results are sympy's, node for node (tests/symbolic/test_differentiation.py
-compares them); any other node is differentiated by sympy. Imports no stage.
+compares them); any other node is differentiated by sympy. A term whose factor's derivative is
+0 is dropped, not multiplied out: sympy's 0 * f asks whether f is finite (0 * oo is nan), a walk
+over f, and the terms here are finite (`model.check_well_defined` refuses infinities), where
+0 * f is 0. Imports no stage.
 """
 from __future__ import annotations
 
@@ -31,12 +34,14 @@ def derivative(expr, symbol, memo: dict | None = None):
         result = sp.Add(*[derivative(a, symbol, memo) for a in expr.args])
     elif expr.is_Mul:
         factors = list(expr.args)
-        result = sp.Add(*[sp.Mul(*factors[:i], derivative(f, symbol, memo), *factors[i + 1:])
-                          for i, f in enumerate(factors)])
+        terms = [(i, derivative(f, symbol, memo)) for i, f in enumerate(factors)]
+        result = sp.Add(*[sp.Mul(*factors[:i], d, *factors[i + 1:]) for i, d in terms if d != 0])
     elif expr.is_Pow:
         base, exponent = expr.args
         d_base, d_exponent = derivative(base, symbol, memo), derivative(exponent, symbol, memo)
-        result = expr * (d_exponent * sp.log(base) + d_base * exponent / base)
+        by_exponent = d_exponent * sp.log(base) if d_exponent != 0 else sp.S.Zero
+        by_base = d_base * exponent / base if d_base != 0 else sp.S.Zero
+        result = expr * (by_exponent + by_base)
     elif isinstance(expr, (sp.sin, sp.cos)):
         d_argument = derivative(expr.args[0], symbol, memo)
         result = sp.S.Zero if d_argument.is_zero else sp.Add(expr.fdiff(1) * d_argument)

@@ -296,34 +296,57 @@ class _Formulation:
             v = block(body.velocity)
             a0 = rate_block(body.velocity)
             if body.translation_frame is not None:
-                a0 += block(body.translation_frame).cross(v)
+                a0 += _cross(block(body.translation_frame), v)
             if body.omega is not None:
                 w, w_frame = block(body.omega), block(body.omega_frame)
                 W = partials_block(body.omega)
                 I = body.inertia
-                IW = [I * W_s for W_s in W]
-                torque = body.torque - I * rate_block(body.omega) - w_frame.cross(I * w)
+                IW = [_product(I, W_s) for W_s in W]
+                torque = body.torque - _product(I, rate_block(body.omega)) - _cross(w_frame, _product(I, w))
             force = body.force - body.mass * a0
             for r in range(n):
                 for s in range(r, n):
-                    entry = body.mass * V[r].dot(V[s])
+                    entry = body.mass * _dot(V[r], V[s])
                     if body.omega is not None:
-                        entry += W[r].dot(IW[s])
+                        entry += _dot(W[r], IW[s])
                     M[r, s] += entry
                     if s != r:
                         M[s, r] += entry
-                F[r] += V[r].dot(force)
+                F[r] += _dot(V[r], force)
                 if body.omega is not None:
-                    F[r] += W[r].dot(torque)
+                    F[r] += _dot(W[r], torque)
         for rows, vector in loose:
             for r, V_r in enumerate(partials_block(rows)):
-                F[r] += V_r.dot(vector)
+                F[r] += _dot(V_r, vector)
         motion_rates = rate_block(constraints)
         full: dict = dict(zip(qd_symbols, qd))
         for symbol, expr in assignments + partial_assignments + rate_assignments:
             full[symbol] = expr.xreplace(full)
         return KaneTerms(mass_matrix=M.xreplace(full), forcing=F.xreplace(full),
                          motion_rates=motion_rates.xreplace(full))
+
+
+def _times(a, b):
+    """a * b, 0 without forming it when either is 0: sympy's 0 * expr asks whether expr is finite
+    (0 * oo is nan), a walk over the whole expression (half the time of forming the Whipple
+    bicycle's M and F went there). The expressions here are finite, so the result is sympy's."""
+    return sp.S.Zero if a == 0 or b == 0 else a * b
+
+
+def _dot(a, b):
+    """a . b of two column matrices (Matrix.dot, by `_times`)."""
+    return sp.Add(*[_times(x, y) for x, y in zip(a, b)])
+
+
+def _product(A, b) -> sp.Matrix:
+    """A b of a matrix and a column matrix (A * b, by `_times`)."""
+    return sp.Matrix([_dot(A.row(i), b) for i in range(A.rows)])
+
+
+def _cross(a, b) -> sp.Matrix:
+    """a x b of two 3-vectors as column matrices (Matrix.cross, by `_times`)."""
+    return sp.Matrix([_times(a[1], b[2]) - _times(a[2], b[1]), _times(a[2], b[0]) - _times(a[0], b[2]),
+                      _times(a[0], b[1]) - _times(a[1], b[0])])
 
 
 def dyadic_frames(dyadic) -> list:
