@@ -200,6 +200,27 @@ def test_the_looped_lu_beyond_the_unrolled_size_gives_the_same_bits(discs, tmp_p
                                   simulate(discs["elimination"], start, t_end=0.5, h=1e-3).x)
 
 
+def test_a_shared_dynamics_kernel_gives_the_same_bits(discs, tmp_path, monkeypatch):
+    """A large dynamics kernel is compiled once in the two-part build (steppers.SHARED_DYNAMICS_MIN_OPS:
+    defined in part 2, called by part 1's steppers); with the limit lowered to 0 the disc's takes
+    that path. Second route: the same C function, only compiled in another translation unit, so
+    the rhs, the dependent speeds and a simulated run agree to the last bit with the usual build's."""
+    from lagcodegen.codegen import steppers
+
+    monkeypatch.setattr(steppers, "SHARED_DYNAMICS_MIN_OPS", 0)
+    x, y = rolling_disc().coordinates[:2]
+    shared = compile_model(rolling_disc(dependent_speeds=[x, y]), methods=("rk4",), cache_dir=tmp_path)
+    assert "LCG_SHARED int lcg_rolling_disc_dynamics(" in shared.sources.source
+    assert "LCG_SHARED" not in discs["elimination"].sources.source
+    rng = np.random.default_rng(5)
+    for state in rng.uniform(-1.0, 1.0, (5, 8)) + [0, 0, 0, 0.4, 0, 0, 0, 0]:  # theta near 0.4: off the singular set
+        np.testing.assert_array_equal(make_rhs(shared)(0.0, state), make_rhs(discs["elimination"])(0.0, state))
+        np.testing.assert_array_equal(dependent_speeds(shared, state), dependent_speeds(discs["elimination"], state))
+    start = [0.0, 0.0, 0.0, 0.1, 0.0, 0.2, 0.0, 8.0]
+    np.testing.assert_array_equal(simulate(shared, start, t_end=0.5, h=1e-3).x,
+                                  simulate(discs["elimination"], start, t_end=0.5, h=1e-3).x)
+
+
 def test_only_the_multipliers_take_baumgarte_parameters(discs):
     # found by review: an FMU of an eliminated model offered baumgarte_alpha and _beta, which did nothing
     # (the dependent speeds are solved from the constraints, so w = A u + b = 0 at every evaluation)

@@ -93,6 +93,27 @@ def test_inlined_stages_give_the_same_numbers_as_calls(monkeypatch, tmp_path):
         np.testing.assert_allclose(inlined, called, rtol=1e-13, atol=1e-13)
 
 
+@pytest.mark.parametrize("model,x0", [(lambda: catalog.pendulum_chain(6), [0.3] * 6 + [0.0] * 6),
+                                      (catalog.slider_crank, None)], ids=["chain6", "slider_crank"])
+def test_a_shared_dynamics_kernel_gives_the_same_numbers(model, x0, monkeypatch, tmp_path):
+    """The dynamics kernel compiled once in part 2 (LCG_SHARED, the limit lowered to 0) and once in
+    each part (the limit out of reach): the same C function in another translation unit, so the
+    same bits after 200 RK4 and 200 dopri5 steps (the reference is the usual build, whose RK4 the
+    order tests check against DOP853)."""
+    from lagcodegen.run.simulate import simulate
+
+    model = model()
+    runs = {}
+    for limit in (0, 10 ** 9):
+        monkeypatch.setattr(steppers, "SHARED_DYNAMICS_MIN_OPS", limit)
+        system = pipeline.compile_model(model, methods=["rk4", "dopri5"], cache_dir=tmp_path / f"limit{limit}")
+        assert ("LCG_SHARED int" in system.sources.source) == (limit == 0)
+        start = x0 if x0 is not None else catalog.slider_crank_state(0.4, 2.0)
+        runs[limit] = [simulate(system, start, t_end=2.0, h=1e-2, method=m).x for m in ("rk4", "dopri5")]
+    for shared, usual in zip(runs[0], runs[10 ** 9]):
+        np.testing.assert_array_equal(shared, usual)
+
+
 def test_sources_key_follows_the_package_code(monkeypatch):
     eom = derive_equations(catalog.double_pendulum())
     args = (eom, ["rhs"], None, ("rk4",), "double")
@@ -201,13 +222,20 @@ def test_package_digest_reads_the_installed_package():
 
 
 @pytest.mark.compiler
-@pytest.mark.parametrize("model", ["double_pendulum", "slider_crank"])
-def test_build_parts_define_every_exported_function_once(model, tmp_path, require_tool):
+@pytest.mark.parametrize("model,shared", [("double_pendulum", False), ("slider_crank", False),
+                                          ("double_pendulum", True), ("slider_crank", True)])
+def test_build_parts_define_every_exported_function_once(model, shared, tmp_path, require_tool, monkeypatch):
     """LCG_BUILD_PART 1 and 2 (the parallel build) together define each exported function
-    exactly once, and part 0 (the default, the embedded build) defines all of them."""
+    exactly once, and part 0 (the default, the embedded build) defines all of them. A shared
+    dynamics kernel (`steppers.SHARED_DYNAMICS_MIN_OPS`, lowered here to 0) is defined once, in
+    part 2, and internal in part 0."""
     import subprocess
 
     from lagcodegen.integrators.schemes import DEFAULT_METHODS
+
+    monkeypatch.setattr(steppers, "SHARED_DYNAMICS_MIN_OPS", 0 if shared else 10 ** 9)
+    if shared:  # the double pendulum's kernel is small enough to be inlined instead
+        monkeypatch.setattr(steppers, "HOT_DYNAMICS_MAX_OPS", -1)
 
     gcc, nm_tool = require_tool("gcc"), require_tool("nm")
     eom = derive_equations(getattr(catalog, model)())
@@ -225,8 +253,12 @@ def test_build_parts_define_every_exported_function_once(model, tmp_path, requir
         nm = subprocess.run([nm_tool, "--defined-only", "-g", str(obj)], capture_output=True, text=True, check=True)
         defined[part] = [line.split()[-1] for line in nm.stdout.splitlines() if line.split()[1] == "T"]
     exported = sorted(defined[0])
-    assert f"{sources.layout.prefix}_simulate" in exported and f"{sources.layout.prefix}_step_rk4" in exported
-    assert sorted(defined[1] + defined[2]) == exported
+    prefix = sources.layout.prefix
+    assert f"{prefix}_simulate" in exported and f"{prefix}_step_rk4" in exported
+    kernel = f"{prefix}_dynamics" if not eom.m else f"{prefix}_dynamics_constrained"
+    assert (f"LCG_SHARED int {kernel}(" in sources.source) == shared
+    assert sorted(defined[1] + defined[2]) == sorted(exported + ([kernel] if shared else []))
+    assert (kernel in defined[2]) == shared and kernel not in defined[1] + defined[0]
 
 
 def test_the_header_documents_the_driven_drivers_arguments(driven_oscillator):

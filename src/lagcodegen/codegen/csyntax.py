@@ -25,10 +25,11 @@ def comment_text(text: str) -> str:
 
 
 def record(result: str, name: str, arguments: str, doc: str, body: list, static: bool = False,
-           hot: bool = False) -> dict:
+           hot: bool = False, shared: bool = False) -> dict:
     """A C function ``result name(arguments)`` for the templates, carrying its name (so the layout
     lists the exported functions without reading declarations); ``hot``: static and always inlined
-    (LCG_HOT_INLINE)."""
-    qualifier = "static LCG_HOT_INLINE " if hot else "static " if static else ""
+    (LCG_HOT_INLINE); ``shared``: not exported either, but compiled once in lagcodegen's two-part
+    build (LCG_SHARED: static in the one translation unit of the file as shipped)."""
+    qualifier = "static LCG_HOT_INLINE " if hot else "LCG_SHARED " if shared else "static " if static else ""
     return {"decl": f"{qualifier}{result} {name}({arguments})", "name": name, "doc": doc, "body": body,
-            "static": static or hot, "hot": hot}
+            "static": static or hot or shared, "hot": hot, "shared": shared}

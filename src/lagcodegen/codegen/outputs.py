@@ -24,7 +24,7 @@ from .csyntax import PROJECTION_STALL, UNIT_ROUNDOFF, comment_text, literal, rec
 from .kernel_text import KernelWriter, kernel_parts, results
 from .ldlt import ldlt_factor_lines, ldlt_substitution_lines
 from .lu import UNROLLED_LU_MAX, lu_factor_lines, lu_substitute_lines
-from .steppers import hot_dynamics
+from .steppers import hot_dynamics, shared_dynamics
 
 
 class KernelError(ValueError):
@@ -870,6 +870,7 @@ def _dynamics_functions(w: KernelWriter) -> list:
     failure = f"{prefix}_pivot_failure(x)"
     m = system.n_constraints
     arguments = f"{w.driven_arguments}, {real} *qd, {real} *ud"
+    linkage = {"shared": True} if shared_dynamics(system) else {"static": True}
     if w.n_dependent:
         return [record("int", f"{prefix}_dynamics", f"{arguments}, {real} *gauge",
                        "K, M, F, A and gamma of every speed with shared temporaries: A_D factored once, the "
@@ -877,7 +878,7 @@ def _dynamics_functions(w: KernelWriter) -> list:
                        f"dependent speeds are computed), then ud of the {w.n_u} independent speeds from the "
                        "reduced equations; gauge (or NULL) receives the pivots of the reduced M and det(A_D) "
                        "(the singularity monitor of the drivers).",
-                       body + _eliminated_tail_lines(w, kernel, M, reduced[1]), static=True)]
+                       body + _eliminated_tail_lines(w, kernel, M, reduced[1]), **linkage)]
     if not m:
         factor, LD = ldlt_factor_lines(n, nonzero, real, failure)
         body += factor + _gauge_lines(n) + ldlt_substitution_lines(n, LD, real, lambda i: f"F_{i}",
@@ -887,7 +888,7 @@ def _dynamics_functions(w: KernelWriter) -> list:
         doc = ("K, M and F with shared temporaries, then M ud = F by LDL^T; gauge (or NULL) receives the "
                f"{n} pivots of M (the singularity monitor of the drivers).")
         if not hot_dynamics(system):
-            return [record("int", f"{prefix}_dynamics", arguments, doc, body, static=True)]
+            return [record("int", f"{prefix}_dynamics", arguments, doc, body, **linkage)]
         return [record("int", f"{prefix}_dynamics_hot", arguments,
                        doc[:-1] + "; inlined into every explicit Runge-Kutta stage.", body, hot=True),
                 record("int", f"{prefix}_dynamics", arguments, "The same, as one function for the other callers.",
@@ -899,7 +900,7 @@ def _dynamics_functions(w: KernelWriter) -> list:
                    "by the range-space method (LDL^T of M, Cholesky of A M^-1 A^T); Q = A^T lam if not NULL; "
                    f"gauge (or NULL) receives the {n} pivots of M, the {m} of A M^-1 A^T and A "
                    "(the singularity monitor of the drivers).",
-                   body, static=True)]
+                   body, **linkage)]
 
 
 def _recursive_dynamics_functions(w: KernelWriter, kernel) -> list:

@@ -305,7 +305,7 @@ def _context(system: ReducedSystem, names: Names, layout: KernelLayout, function
         "status_codes": [{"name": row.c_name, "value": row.code, "doc": row.message} for row in STATUS_TABLE],
         "prototypes": [f for f in functions if not f["static"]], "functions": functions,
         "has_dynamics": has_dynamics,
-        "has_hot": any(f["hot"] for f in functions),
+        "has_hot": any(f["hot"] for f in functions), "has_shared": any(f["shared"] for f in functions),
         "has_constraints": system.n_constraints > 0, "n_constraints": system.n_constraints,
         "n_constraint_matrix": system.n_constraints * n, "n_constraints_squared": system.n_constraints ** 2,
         "has_constraint_terms": "constraints" in system.outputs,

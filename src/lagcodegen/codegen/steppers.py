@@ -57,6 +57,21 @@ DEPENDENT_JUMP = 2.0
 #: Larger kernels stay calls: every inlined copy costs compile time, and there are ~20 call sites.
 HOT_DYNAMICS_MAX_OPS = 100
 
+#: a dynamics kernel this large (ops after CSE) is compiled once in the two-part build (in part 2;
+#: part 1's steppers call it), not once in each part: its compile is most of a cold build. The
+#: Whipple bicycle (about 1300 operations): part 1 took 0.36 s of CPU instead of 0.9, part 2 0.95
+#: instead of 0.75 (the kernel no longer inlined into rhs with gauge NULL), the build 1.37 s
+#: instead of 1.44 (medians of 8 in turn) on two cores; the RK4 step the same (C harness, best of
+#: 20 rounds: 1573 against 1584 ns) and the results the same bits (tests).
+SHARED_DYNAMICS_MIN_OPS = 500
+
+
+def shared_dynamics(system) -> bool:
+    """True when the dynamics kernel is defined once for both parts of the build (LCG_SHARED); a
+    kernel small enough to be inlined (`hot_dynamics`) never is."""
+    return not system.recursive and not hot_dynamics(system) and \
+        system.kernel("dynamics").ops_after >= SHARED_DYNAMICS_MIN_OPS
+
 
 def hot_dynamics(system) -> bool:
     """True when the explicit steppers call an always-inlined copy of the dynamics kernel."""
