@@ -29,9 +29,9 @@ def _unites_arguments(cls: type) -> bool:
     return known
 
 
-def distinct_nodes(exprs: Iterable) -> Iterator[sp.Basic]:
+def distinct_nodes(exprs: Iterable, into=None) -> Iterator[sp.Basic]:
     """Every distinct node of ``exprs`` (sympy objects; other items are skipped), once each, in no
-    particular order."""
+    particular order; ``into(node)``, when given, says whether to walk into a node's arguments."""
     seen: set = set()
     stack = [e for e in exprs if isinstance(e, sp.Basic)]
     while stack:
@@ -40,7 +40,8 @@ def distinct_nodes(exprs: Iterable) -> Iterator[sp.Basic]:
             continue
         seen.add(node)
         yield node
-        stack.extend(node.args)
+        if into is None or into(node):
+            stack.extend(node.args)
 
 
 def atoms_of(exprs: Iterable, *types) -> set:
@@ -52,15 +53,7 @@ def free_symbols_of(exprs: Iterable) -> set:
     """The union of ``expr.free_symbols`` over ``exprs``, with the same rules: a node whose class
     defines free_symbols (a Symbol, or a Derivative or Integral that binds its variables) is asked."""
     found: set = set()
-    seen: set = set()
-    stack = [e for e in exprs if isinstance(e, sp.Basic)]
-    while stack:
-        node = stack.pop()
-        if node in seen:
-            continue
-        seen.add(node)
-        if _unites_arguments(type(node)):
-            stack.extend(node.args)
-        else:
+    for node in distinct_nodes(exprs, into=lambda n: _unites_arguments(type(n))):
+        if not _unites_arguments(type(node)):
             found |= node.free_symbols
     return found

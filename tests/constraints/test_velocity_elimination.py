@@ -179,46 +179,38 @@ def test_the_eliminated_disc_keeps_three_speeds(discs):
     assert layout.n_state == 8 and discs["multipliers"].layout.n_state == 10
 
 
-def test_the_looped_lu_beyond_the_unrolled_size_gives_the_same_bits(discs, tmp_path, monkeypatch):
-    """A_D larger than codegen.lu.UNROLLED_LU_MAX keeps the looped dense_factor / dense_substitute;
-    with the limit lowered to 0 the disc's 2 x 2 A_D takes that path. Second route: the same
-    operations in the same order, so the rhs, the simulated state and the dependent speeds agree
-    to the last bit with the unrolled kernel's."""
-    import lagcodegen.codegen.outputs as outputs
-
-    monkeypatch.setattr(outputs, "UNROLLED_LU_MAX", 0)
-    x, y = rolling_disc().coordinates[:2]
-    looped = compile_model(rolling_disc(dependent_speeds=[x, y]), methods=("rk4",), cache_dir=tmp_path)
-    assert "_dense_factor(LU, ipiv" in looped.sources.source
-    assert "_dense_factor(LU, ipiv" not in discs["elimination"].sources.source
-    rng = np.random.default_rng(3)
+def _assert_same_disc_bits(built, reference, seed: int) -> None:
+    """The rhs and the dependent speeds at five random states, and a 500-step run, equal to the last
+    bit in two builds of the eliminated disc."""
+    rng = np.random.default_rng(seed)
     for state in rng.uniform(-1.0, 1.0, (5, 8)) + [0, 0, 0, 0.4, 0, 0, 0, 0]:  # theta near 0.4: off the singular set
-        np.testing.assert_array_equal(make_rhs(looped)(0.0, state), make_rhs(discs["elimination"])(0.0, state))
-        np.testing.assert_array_equal(dependent_speeds(looped, state), dependent_speeds(discs["elimination"], state))
+        np.testing.assert_array_equal(make_rhs(built)(0.0, state), make_rhs(reference)(0.0, state))
+        np.testing.assert_array_equal(dependent_speeds(built, state), dependent_speeds(reference, state))
     start = [0.0, 0.0, 0.0, 0.1, 0.0, 0.2, 0.0, 8.0]
-    np.testing.assert_array_equal(simulate(looped, start, t_end=0.5, h=1e-3).x,
-                                  simulate(discs["elimination"], start, t_end=0.5, h=1e-3).x)
+    np.testing.assert_array_equal(simulate(built, start, t_end=0.5, h=1e-3).x,
+                                  simulate(reference, start, t_end=0.5, h=1e-3).x)
 
 
-def test_a_shared_dynamics_kernel_gives_the_same_bits(discs, tmp_path, monkeypatch):
-    """A large dynamics kernel is compiled once in the two-part build (steppers.SHARED_DYNAMICS_MIN_OPS:
-    defined in part 2, called by part 1's steppers); with the limit lowered to 0 the disc's takes
-    that path. Second route: the same C function, only compiled in another translation unit, so
-    the rhs, the dependent speeds and a simulated run agree to the last bit with the usual build's."""
-    from lagcodegen.codegen import steppers
+@pytest.mark.parametrize("limit,marker,seed", [
+    ("outputs.UNROLLED_LU_MAX", "_dense_factor(LU, ipiv", 3),
+    ("steppers.SHARED_DYNAMICS_MIN_OPS", "LCG_SHARED int lcg_rolling_disc_dynamics(", 5),
+], ids=["looped_lu", "shared_kernel"])
+def test_another_kernel_layout_gives_the_same_bits(discs, tmp_path, monkeypatch, limit, marker, seed):
+    """Second routes to the same numbers, each with a size limit lowered to 0 so that the disc takes it.
+    A_D larger than codegen.lu.UNROLLED_LU_MAX keeps the looped dense_factor / dense_substitute: the
+    same operations in the same order as the unrolled LU. A dynamics kernel of
+    steppers.SHARED_DYNAMICS_MIN_OPS or more is compiled once in the two-part build (defined in part
+    2, called by part 1's steppers): the same C function in another translation unit. Either way the
+    rhs, the dependent speeds and a simulated run agree to the last bit with the usual build's."""
+    from lagcodegen.codegen import outputs, steppers
 
-    monkeypatch.setattr(steppers, "SHARED_DYNAMICS_MIN_OPS", 0)
+    module, name = limit.split(".")
+    monkeypatch.setattr({"outputs": outputs, "steppers": steppers}[module], name, 0)
     x, y = rolling_disc().coordinates[:2]
-    shared = compile_model(rolling_disc(dependent_speeds=[x, y]), methods=("rk4",), cache_dir=tmp_path)
-    assert "LCG_SHARED int lcg_rolling_disc_dynamics(" in shared.sources.source
-    assert "LCG_SHARED" not in discs["elimination"].sources.source
-    rng = np.random.default_rng(5)
-    for state in rng.uniform(-1.0, 1.0, (5, 8)) + [0, 0, 0, 0.4, 0, 0, 0, 0]:  # theta near 0.4: off the singular set
-        np.testing.assert_array_equal(make_rhs(shared)(0.0, state), make_rhs(discs["elimination"])(0.0, state))
-        np.testing.assert_array_equal(dependent_speeds(shared, state), dependent_speeds(discs["elimination"], state))
-    start = [0.0, 0.0, 0.0, 0.1, 0.0, 0.2, 0.0, 8.0]
-    np.testing.assert_array_equal(simulate(shared, start, t_end=0.5, h=1e-3).x,
-                                  simulate(discs["elimination"], start, t_end=0.5, h=1e-3).x)
+    other = compile_model(rolling_disc(dependent_speeds=[x, y]), methods=("rk4",), cache_dir=tmp_path)
+    assert marker in other.sources.source
+    assert marker not in discs["elimination"].sources.source
+    _assert_same_disc_bits(other, discs["elimination"], seed=seed)
 
 
 def test_only_the_multipliers_take_baumgarte_parameters(discs):
