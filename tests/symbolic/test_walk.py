@@ -44,3 +44,18 @@ def test_shared_subtrees_are_visited_once():
     assert len(nodes) == len(set(nodes)) < 200
     assert free_symbols_of([expr]) == {x}
     assert atoms_of([expr], sp.sin) == {sp.sin(x)}
+
+
+def test_with_zeros_is_xreplace_by_zero():
+    """sympy's xreplace({s: 0}) is the reference, on finite expressions, node for node (srepr)."""
+    from lagcodegen.walk import with_zeros
+
+    u, v = sp.symbols("u v")
+    cases = [x * u + y, sp.sin(x) * u * v - 2 * y * v + sp.cos(u) * x, (u + x) ** 2 * y, 1 / (x + u),
+             sp.Float(2.0) * x * u + sp.Float(2.0) * x + 2 * y, sp.sin(u * x) + sp.exp(v) * x,
+             sp.Piecewise((u * x, y > 0), (x, True)), q.diff() * u + q]
+    memo: dict = {}
+    for expr in cases:
+        rule = {u: 0, v: 0}
+        assert sp.srepr(with_zeros(expr, (u, v), memo)) == sp.srepr(expr.xreplace(rule)), expr
+        assert sp.srepr(with_zeros(expr, (u, v))) == sp.srepr(expr.xreplace(rule)), expr

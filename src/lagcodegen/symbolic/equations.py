@@ -21,6 +21,7 @@ from ..model import (
     check_symbols_declared,
     input_name,
 )
+from ..walk import with_zeros
 from .differentiation import jacobian
 from .grouping import components
 from .holonomic import BAUMGARTE_ALPHA, BAUMGARTE_BETA, holonomic_terms, motion_terms
@@ -35,7 +36,10 @@ def without_baumgarte(expr):
     """``expr`` with Baumgarte's terms dropped, for dependent speeds eliminated: they are solved from the
     velocity constraints at every evaluation, so w = A u + b is zero there and -2 alpha w vanishes
     (and there is no phi for -beta^2 phi)."""
-    return expr.xreplace({BAUMGARTE_ALPHA: 0, BAUMGARTE_BETA: 0})
+    terms, memo = (BAUMGARTE_ALPHA, BAUMGARTE_BETA), {}
+    if isinstance(expr, sp.MatrixBase):
+        return expr.applyfunc(lambda entry: with_zeros(entry, terms, memo))
+    return with_zeros(expr, terms, memo)
 
 
 #: expression nodes of M and F beyond which a notebook shows the equations as text

@@ -18,6 +18,8 @@ from __future__ import annotations
 
 import sympy as sp
 
+from ..walk import with_zeros
+
 BAUMGARTE_ALPHA = sp.Symbol("baumgarte_alpha")
 BAUMGARTE_BETA = sp.Symbol("baumgarte_beta")
 
@@ -42,7 +44,8 @@ def motion_terms(w: sp.Matrix, q, u, t, qd=None, rates=None, A=None) -> dict:
     ``A``, when given, is dw/du already formed."""
     q_vec, u_vec = sp.Matrix(q), sp.Matrix(u)
     A = w.jacobian(u_vec) if A is None else A
-    b = w.xreplace(dict.fromkeys(u, 0))
+    memo: dict = {}
+    b = w.applyfunc(lambda entry: with_zeros(entry, u, memo))
     if rates is None:
         rates = w.jacobian(q_vec) * (u_vec if qd is None else sp.Matrix(qd)) + w.diff(t)
     gamma = -rates - 2 * BAUMGARTE_ALPHA * w

@@ -57,7 +57,7 @@ class _NotCovered(Exception):
 
 
 def kane_terms(method: me.KanesMethod, kindiff: dict, to_plain, motion=(), inputs=(),
-               known=None) -> KaneTerms | None:
+               known=None, inertias=None) -> KaneTerms | None:
     """The unreduced Kane equations of ``method``'s bodies and loads (see the module docstring),
     or None when a body, load or velocity is outside what this formulation writes.
 
@@ -66,9 +66,10 @@ def kane_terms(method: me.KanesMethod, kindiff: dict, to_plain, motion=(), input
     input symbols (a velocity that reads one has a rate this cannot form). ``known``: the symbols
     the equations may hold (parameters, inputs, q, u, t); a load term that sympy's expanded
     equations cancel (a force along a direction no speed moves its point in) can survive here
-    as a product that is zero only after simplification, and then sympy's equations are kept."""
+    as a product that is zero only after simplification, and then sympy's equations are kept.
+    ``inertias``: {body: (frame, the matrix of its central inertia there)} already formed."""
     try:
-        terms = _Formulation(method, kindiff, to_plain, inputs).equations(motion)
+        terms = _Formulation(method, kindiff, to_plain, inputs, inertias or {}).equations(motion)
     except (_NotCovered, ModelError, ValueError, TypeError):  # sympy's own equations say what is wrong, if anything
         return None
     if known is not None:
@@ -91,12 +92,13 @@ class _Body:
 
 
 class _Formulation:
-    def __init__(self, method, kindiff, to_plain, inputs):
+    def __init__(self, method, kindiff, to_plain, inputs, inertias):
         self.frame = method._inertial  # private: sympy 1.14 keeps the inertial frame only there
         self.kindiff = kindiff
         self.to_plain = to_plain
         self.inputs = set(inputs)
         self.method = method
+        self.inertias = inertias
         self.rows: list = []  # velocity-level expressions, plain
         self.rotations: dict = {}  # frame -> its DCM to the inertial frame is a rotation everywhere
         self.random = np.random.default_rng(20261126)
@@ -158,7 +160,9 @@ class _Formulation:
                 raise _NotCovered(f"the acceleration of {body} is set, not derived")
             if isinstance(body, me.RigidBody):
                 E = self.inertia_frame(body)
-                inertia = self.to_plain(body.central_inertia.to_matrix(E), f"the inertia of {body}")
+                given = self.inertias.get(body)
+                matrix = given[1] if given is not None and given[0] == E else body.central_inertia.to_matrix(E)
+                inertia = self.to_plain(matrix, f"the inertia of {body}")
                 if inertia.free_symbols & self.state:
                     raise _NotCovered(f"the inertia of {body} changes with the state")
                 entries.append((body, E, inertia))

@@ -83,10 +83,10 @@ def derive_from_sympy(model: Model):
         return renamed(sp.sympify(expr).xreplace(zero) if zero and expr is not None else expr, what)
     terms = None
     if isinstance(method, me.KanesMethod):
-        _check_symmetric_inertias(method, model)
+        inertias = _check_symmetric_inertias(method, model)
         plain_inputs = input_symbols(model.inputs)
         known = set(model.parameters) | set(plain_inputs) | set(q) | set(u) | {TIME}
-        terms = kane_terms(method, kindiff, to_plain, motion, inputs=plain_inputs, known=known)
+        terms = kane_terms(method, kindiff, to_plain, motion, inputs=plain_inputs, known=known, inertias=inertias)
         if terms is None and n_dependent:
             method = _every_speed_independent(method, kindiff)
     qdot_table = rates
@@ -251,10 +251,12 @@ def _with_reactions(eom, model: Model, equations, coords, speeds, auxiliary, to_
                    reaction_accelerations=accelerations)
 
 
-def _check_symmetric_inertias(method, model: Model) -> None:
+def _check_symmetric_inertias(method, model: Model) -> dict:
     """A rigid body's inertia dyadic with a product of inertia written on one side only
     (``Ixz*(B.x|B.z)`` without ``B.z|B.x``) gives Kane's equations a mass matrix that is not
-    symmetric, which no factorization of M reads as written."""
+    symmetric, which no factorization of M reads as written. Returns {body: (frame, its central
+    inertia's matrix in that frame)}, which `kane_terms` takes instead of forming them again."""
+    matrices = {}
     for body in method.bodies or ():
         if not isinstance(body, me.RigidBody):
             continue
@@ -263,6 +265,7 @@ def _check_symmetric_inertias(method, model: Model) -> None:
             I = body.central_inertia.to_matrix(frames[0])
         except ValueError:  # terms in frames with no orientation between them: sympy's own equations tell
             continue
+        matrices[body] = (frames[0], I)
         for i in range(3):
             for j in range(i + 1, 3):
                 if sp.expand(I[i, j] - I[j, i]) != 0:
@@ -270,6 +273,7 @@ def _check_symmetric_inertias(method, model: Model) -> None:
                                      f"frame {frames[0]}, entry ({i}, {j}) is {I[i, j]} and entry ({j}, {i}) is "
                                      f"{I[j, i]}; write each product of inertia on both sides, as "
                                      "sympy.physics.mechanics.inertia() does")
+    return matrices
 
 
 def _every_speed_independent(method, kindiff):
